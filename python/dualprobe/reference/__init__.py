@@ -1,0 +1,1 @@
+"""Independent NumPy/SciPy reference implementations, used to check the C++ core."""
