@@ -1,0 +1,83 @@
+"""Shared CLI plumbing: error handling that always ends in one `error: ...` line."""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import sys
+from collections.abc import Callable
+from typing import NoReturn
+
+from dualprobe.io import EstimationError, InputError
+
+__all__ = [
+    "EXIT_ESTIMATION",
+    "EXIT_INPUT",
+    "EXIT_INTERNAL",
+    "ArgumentParser",
+    "UsageError",
+    "handle_errors",
+    "print_error",
+]
+
+EXIT_INTERNAL = 1
+EXIT_INPUT = 2
+EXIT_ESTIMATION = 3
+
+Runner = Callable[[argparse.Namespace], int]
+
+
+class UsageError(InputError):
+    """Bad command-line usage (unknown option, bad value); exit status 2."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """argparse that raises :class:`UsageError` instead of printing usage and exiting."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: {message}")
+
+
+def _single_line(message: str) -> str:
+    return " ".join(str(message).split()) or "(no message)"
+
+
+def print_error(message: str) -> None:
+    print(f"error: {_single_line(message)}", file=sys.stderr)
+
+
+def exit_status(exc: BaseException) -> int:
+    """Print the one-line message for an exception and return the exit status for it."""
+    if isinstance(exc, InputError):
+        print_error(str(exc))
+        return EXIT_INPUT
+    if isinstance(exc, EstimationError):
+        print_error(str(exc))
+        return EXIT_ESTIMATION
+    if isinstance(exc, KeyboardInterrupt):
+        print_error("interrupted")
+        return 130
+    if isinstance(exc, BrokenPipeError):
+        return EXIT_INTERNAL
+    if isinstance(exc, MemoryError):
+        print_error("out of memory")
+        return EXIT_INTERNAL
+    if isinstance(exc, ValueError):
+        # The library's contract: bad input at the API level raises ValueError.
+        print_error(str(exc))
+        return EXIT_INPUT
+    print_error(f"internal: {type(exc).__name__}: {exc}")
+    return EXIT_INTERNAL
+
+
+def handle_errors(run: Runner) -> Runner:
+    """Wrap a subcommand so that errors become one `error:` line and an exit status."""
+
+    @functools.wraps(run)
+    def wrapper(args: argparse.Namespace) -> int:
+        try:
+            return int(run(args) or 0)
+        except (Exception, KeyboardInterrupt) as exc:
+            return exit_status(exc)
+
+    return wrapper
