@@ -1,0 +1,149 @@
+"""`dualprobe characterise DATA.csv`: time constants of a sensor pair and the gas temperature."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from dualprobe.characterise import (
+    METHODS,
+    RECONSTRUCTION_MODES,
+    characterise_file,
+    write_json,
+    write_reconstruction,
+)
+from dualprobe.cli.common import UsageError, handle_errors
+
+__all__ = ["register", "run"]
+
+
+def _noise_std(text: str) -> tuple[float, ...]:
+    """One value for both sensors or `S1,S2`."""
+    try:
+        values = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number or pair of numbers: {text!r}") from None
+    if len(values) not in (1, 2) or any(not math.isfinite(v) or v < 0 for v in values):
+        raise argparse.ArgumentTypeError(
+            f"expected SIGMA or SIGMA1,SIGMA2 (finite, >= 0), got {text!r}"
+        )
+    return values
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def _check_writable(option: str, path: Path) -> None:
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory")
+    parent = path.parent
+    if not parent.is_dir():
+        raise UsageError(f"{option} {path}: directory {parent} does not exist")
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "characterise",
+        aliases=["characterize"],
+        help="identify the time constants of a sensor pair and reconstruct the gas temperature",
+        description="Identify both sensors' time constants from a CSV recording of the pair "
+        "(header row; a time column and one column per sensor) and reconstruct the gas "
+        "temperature. The defaults need no knowledge of the noise level.",
+    )
+    parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
+    parser.add_argument(
+        "--time",
+        default="t",
+        metavar="COL",
+        help="time column in seconds (default: t); '' if the file has none, then give "
+        "--sample-interval",
+    )
+    parser.add_argument(
+        "--sample-interval",
+        type=_positive,
+        default=None,
+        metavar="TS",
+        help="sample interval in seconds when there is no time column",
+    )
+    parser.add_argument("--sensor1", default="T_m1", metavar="COL", help="faster sensor (T_m1)")
+    parser.add_argument("--sensor2", default="T_m2", metavar="COL", help="slower sensor (T_m2)")
+    parser.add_argument(
+        "--method",
+        choices=METHODS,
+        default="auto",
+        help="auto (default: noise-robust state-variable filter), svf, or the paper's "
+        "difference-equation ls|tls|gtls",
+    )
+    parser.add_argument("--order", type=int, choices=(1, 2), default=1, help="sensor model order")
+    parser.add_argument(
+        "--hysteresis",
+        action="store_true",
+        help="separate time constants for heating and cooling",
+    )
+    parser.add_argument(
+        "--noise-std",
+        type=_noise_std,
+        default=None,
+        metavar="SIGMA",
+        help="sensor noise standard deviation in K (SIGMA or SIGMA1,SIGMA2); estimated from "
+        "the data when omitted",
+    )
+    parser.add_argument(
+        "--reference",
+        default=None,
+        metavar="COL",
+        help="reference gas temperature column: report the reconstruction's RMSE against it",
+    )
+    parser.add_argument(
+        "--reconstruction",
+        choices=RECONSTRUCTION_MODES,
+        default="smoother",
+        help="smoother (offline, default), filter (causal) or inverse (paper's exact inverse)",
+    )
+    parser.add_argument("--json", default=None, metavar="PATH", help="write the results as JSON")
+    parser.add_argument(
+        "--output",
+        default=None,
+        metavar="PATH",
+        help="write the reconstruction as CSV t,T_g_hat (one row per input row)",
+    )
+    parser.set_defaults(run=run)
+
+
+@handle_errors
+def run(args: argparse.Namespace) -> int:
+    if args.sample_interval is None and not args.time:
+        raise UsageError("characterise: --time '' needs --sample-interval TS")
+    # Refuse unwritable output paths before the (possibly long) computation.
+    for option, target in (("--json", args.json), ("--output", args.output)):
+        if target is not None:
+            _check_writable(option, Path(target))
+    need_reconstruction = args.output is not None or args.reference is not None
+    result = characterise_file(
+        args.data,
+        time=args.time or None,
+        sensor1=args.sensor1,
+        sensor2=args.sensor2,
+        sample_interval=args.sample_interval,
+        method=args.method,
+        order=args.order,
+        hysteresis=args.hysteresis,
+        noise_std=args.noise_std,
+        reference=args.reference,
+        reconstruction=args.reconstruction if need_reconstruction else None,
+    )
+    if args.json is not None:
+        write_json(result, args.json)
+    if args.output is not None:
+        write_reconstruction(result, args.output)
+    print(result.summary())
+    return 0
