@@ -144,8 +144,12 @@ def _parse_column(
 
 
 def _printed_resolution(cells: list[str]) -> float:
-    """Largest last-digit unit among time stamps written in decimal, e.g. 1e-3 for "12.345"."""
-    worst = 0.0
+    """Resolution the time stamps were printed with: the finest last-digit unit among them.
+
+    E.g. 1e-4 for stamps written with "%.4f". Writers that strip trailing zeros make some
+    stamps look coarser ("0.5"), so the finest unit is the one that tells the resolution.
+    """
+    finest = math.inf
     for cell in cells:
         mantissa, _, exponent = cell.lower().partition("e")
         decimals = len(mantissa.partition(".")[2])
@@ -153,8 +157,8 @@ def _printed_resolution(cells: list[str]) -> float:
             shift = int(exponent) if exponent else 0
         except ValueError:
             continue
-        worst = max(worst, 10.0 ** (shift - decimals))
-    return worst
+        finest = min(finest, 10.0 ** (shift - decimals))
+    return finest if math.isfinite(finest) else 0.0
 
 
 def _check_time(path: Path, name: str, t: np.ndarray, cells: list[str], lines: list[int]) -> float:
@@ -172,7 +176,9 @@ def _check_time(path: Path, name: str, t: np.ndarray, cells: list[str], lines: l
     allowed = IRREGULAR_TIME_TOLERANCE * interval + 8.0 * np.spacing(np.max(np.abs(t)))
     irregular = np.flatnonzero(np.abs(dt - interval) > allowed)
     if irregular.size:
-        allowed = allowed + _printed_resolution(cells)
+        # Two stamps rounded to the printed resolution make an interval off by up to one unit,
+        # and the median interval is off by as much.
+        allowed = allowed + 2.0 * _printed_resolution(cells)
         irregular = np.flatnonzero(np.abs(dt - interval) > allowed)
     if irregular.size:
         later = int(irregular[0]) + 1
