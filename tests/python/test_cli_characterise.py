@@ -1,0 +1,202 @@
+"""`dualprobe characterise` through the command line: bad input and accuracy with defaults."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualprobe.cli import main
+from dualprobe.io import load_columns, write_columns
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def run_cli(capsys: pytest.CaptureFixture[str], *argv: str) -> tuple[int, str, str]:
+    status = main(list(argv))
+    captured = capsys.readouterr()
+    return status, captured.out, captured.err
+
+
+def assert_one_error_line(err: str) -> str:
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: ")
+    assert "Traceback" not in err
+    return lines[0]
+
+
+def write_pair(path: Path, rows: int = 200, ts: float = 0.1) -> Path:
+    """A small first-order pair (1 s and 3 s) on a ramp-and-hold gas profile."""
+    t = np.arange(rows) * ts
+    gas = 20.0 + np.minimum(t, 5.0) * 4.0
+    t1, t2 = np.empty(rows), np.empty(rows)
+    t1[0] = t2[0] = gas[0]
+    a1, a2 = np.exp(-ts / 1.0), np.exp(-ts / 3.0)
+    for k in range(1, rows):
+        t1[k] = a1 * t1[k - 1] + (1 - a1) * gas[k - 1]
+        t2[k] = a2 * t2[k - 1] + (1 - a2) * gas[k - 1]
+    write_columns(path, {"t": t, "T_m1": t1, "T_m2": t2, "T_g": gas})
+    return path
+
+
+def edit_line(path: Path, index: int, text: str) -> Path:
+    lines = path.read_text().splitlines()
+    lines[index] = text
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+BAD_INPUTS = {
+    "missing file": (lambda d: d / "absent.csv", "no such file"),
+    "directory": (lambda d: d, "directory"),
+    "empty file": (lambda d: _write(d / "e.csv", ""), "empty"),
+    "header only": (lambda d: _write(d / "h.csv", "t,T_m1,T_m2\n"), "header only"),
+    "missing column": (
+        lambda d: _write(d / "m.csv", "t,T_m1,T_x\n" + "".join(f"{k},1,2\n" for k in range(20))),
+        "'T_m2'",
+    ),
+    "non-numeric": (lambda d: edit_line(write_pair(d / "n.csv"), 7, "0.6,warm,20,21"), "line 8"),
+    "nan": (lambda d: edit_line(write_pair(d / "f.csv"), 9, "0.8,20,nan,21"), "non-finite"),
+    "inf": (lambda d: edit_line(write_pair(d / "i.csv"), 9, "0.8,inf,20,21"), "non-finite"),
+    "time decreasing": (
+        lambda d: edit_line(write_pair(d / "d.csv"), 4, "0.1,20,20,21"),
+        "not strictly increasing",
+    ),
+    "time irregular": (
+        lambda d: edit_line(write_pair(d / "r.csv"), 4, "0.35,20,20,21"),
+        "irregular",
+    ),
+    "too few rows": (lambda d: write_pair(d / "s.csv", rows=4), "too few"),
+    "binary junk": (
+        lambda d: _write_bytes(d / "b.csv", b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR" * 4),
+        "binary",
+    ),
+    "not utf-8": (lambda d: _write_bytes(d / "u.csv", b"t,T_m1\n\xff\xfe\xfa,1\n"), "UTF-8"),
+}
+
+
+def _write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def _write_bytes(path: Path, data: bytes) -> Path:
+    path.write_bytes(data)
+    return path
+
+
+@pytest.mark.parametrize("case", sorted(BAD_INPUTS))
+def test_bad_input_exits_2_with_one_line(
+    case: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    make, fragment = BAD_INPUTS[case]
+    path = make(tmp_path)
+    status, out, err = run_cli(capsys, "characterise", str(path))
+    line = assert_one_error_line(err)
+    assert status == 2
+    assert fragment in line
+    assert out == ""
+
+
+def test_constant_signal_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = _write(
+        tmp_path / "c.csv", "t,T_m1,T_m2\n" + "".join(f"{k},300,301\n" for k in range(50))
+    )
+    status, _, err = run_cli(capsys, "characterise", str(path))
+    line = assert_one_error_line(err)
+    assert status == 3
+    assert "no excitation" in line and "'T_m1'" in line
+
+
+@pytest.mark.parametrize(
+    ("argv", "fragment"),
+    [
+        (["characterise"], "DATA.csv"),
+        (["characterise", "x.csv", "--method", "magic"], "--method"),
+        (["characterise", "x.csv", "--order", "3"], "--order"),
+        (["characterise", "x.csv", "--noise-std", "-1"], "--noise-std"),
+        (["characterise", "x.csv", "--noise-std", "a,b"], "--noise-std"),
+        (["characterise", "x.csv", "--bogus"], "--bogus"),
+        (["characterise", "x.csv", "--time", ""], "--sample-interval"),
+        (["no-such-command"], "no-such-command"),
+        ([], "no command"),
+    ],
+)
+def test_bad_usage_exits_2_with_one_line(
+    argv: list[str], fragment: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    status, _, err = run_cli(capsys, *argv)
+    line = assert_one_error_line(err)
+    assert status == 2
+    assert fragment in line
+
+
+def test_same_column_twice(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_pair(tmp_path / "p.csv")
+    status, _, err = run_cli(capsys, "characterise", str(path), "--sensor2", "T_m1")
+    assert status == 2 and "same column" in assert_one_error_line(err)
+
+
+def test_unwritable_output_is_refused_before_work(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    path = write_pair(tmp_path / "p.csv")
+    target = str(tmp_path / "no" / "such" / "dir" / "out.csv")
+    status, _, err = run_cli(capsys, "characterise", str(path), "--output", target)
+    assert status == 2 and "does not exist" in assert_one_error_line(err)
+
+
+def test_real_process_has_no_traceback(tmp_path: Path) -> None:
+    env = dict(os.environ, PYTHONPATH=str(REPO / "python"))
+    result = subprocess.run(
+        [sys.executable, "-m", "dualprobe", "characterise", str(tmp_path / "absent.csv")],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1
+    help_result = subprocess.run(
+        [sys.executable, "-m", "dualprobe", "--help"],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=False,
+        timeout=120,
+    )
+    assert help_result.returncode == 0 and "characterise" in help_result.stdout
+
+
+# --- accuracy with defaults (needs dualprobe.simulate, .estimation, .reconstruction) ---------
+
+
+def characterise_csv(
+    capsys: pytest.CaptureFixture[str], path: Path, tmp_path: Path, *extra: str
+) -> tuple[dict[str, object], np.ndarray]:
+    json_path, out_path = tmp_path / "result.json", tmp_path / "tg.csv"
+    status, out, err = run_cli(
+        capsys,
+        "characterise",
+        str(path),
+        "--json",
+        str(json_path),
+        "--output",
+        str(out_path),
+        *extra,
+    )
+    assert status == 0, err
+    assert "T_m1" in out
+    document = json.loads(json_path.read_text())
+    t_out, columns, _ = load_columns(out_path, ["T_g_hat"], min_rows=1)
+    t_in, _, _ = load_columns(path, ["T_m1"], min_rows=1)
+    assert t_out is not None and t_in is not None
+    np.testing.assert_array_equal(t_out, t_in)  # one output row per input row, same stamps
+    return document, columns["T_g_hat"]
