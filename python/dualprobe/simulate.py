@@ -210,9 +210,7 @@ class GasProfile:
     __radd__ = __add__
 
     @classmethod
-    def from_samples(
-        cls, t: np.ndarray, values: np.ndarray, kind: str = "linear"
-    ) -> GasProfile:
+    def from_samples(cls, t: np.ndarray, values: np.ndarray, kind: str = "linear") -> GasProfile:
         """Profile through samples: ``linear`` interpolation, ``hold`` (zero-order hold, jumps
         at the sample times) or ``cubic`` (not-a-knot spline); constant outside the samples."""
         t = np.asarray(t, dtype=float)
@@ -299,7 +297,7 @@ def multistep_profile(
         hold = duration / 10.0 if mean_hold is None else float(mean_hold)
         if not hold > 0.0:
             raise ValueError(f"multistep_profile: mean_hold must be > 0, got {mean_hold}")
-        n_max = int(math.ceil(2.0 * duration / hold)) + 2
+        n_max = math.ceil(2.0 * duration / hold) + 2
         times = start + np.cumsum(gen.uniform(0.5 * hold, 1.5 * hold, size=n_max))
         times = times[times < start + duration]
         if levels is not None:
@@ -365,7 +363,7 @@ def fluctuating_profile(
             "fluctuating_profile: need duration > 0, bandwidth > 0, std >= 0, oversampling >= 2"
         )
     dt = 1.0 / (2.0 * oversampling * bandwidth)
-    n = int(math.ceil(duration / dt)) + 1
+    n = math.ceil(duration / dt) + 1
     n_fft = 2 * n  # padding: the FFT's periodic wrap-around does not join the two record ends
     spectrum = np.fft.rfft(gen.standard_normal(n_fft))
     spectrum[np.fft.rfftfreq(n_fft, dt) > bandwidth] = 0.0
@@ -423,8 +421,10 @@ def _modes(taus: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
         if tau[i - 1] - tau[i] < 1e-6 * tau[i - 1]:
             tau[i] = tau[i - 1] * (1.0 - 1.2e-5)  # error balance: eps/d vs d^2
     residues = np.array(
-        [tau[i] ** (tau.size - 1) / np.prod([tau[i] - tau[j] for j in range(tau.size) if j != i])
-         for i in range(tau.size)]
+        [
+            tau[i] ** (tau.size - 1) / np.prod([tau[i] - tau[j] for j in range(tau.size) if j != i])
+            for i in range(tau.size)
+        ]
     )
     return tau, residues
 
@@ -561,18 +561,27 @@ def simulate_pair(
     if np.any(sig < 0.0) or not np.all(np.isfinite(sig)) or not quantisation >= 0.0:
         raise ValueError("simulate_pair: noise_std and quantisation must be finite and >= 0")
     gen = _rng(rng)
-    n = int(math.floor(duration / ts + 1e-9)) + 1
+    n = math.floor(duration / ts + 1e-9) + 1
     t = start + ts * np.arange(n)
     clean1 = simulate_sensor(profile, sensor1, t)
     clean2 = simulate_sensor(profile, sensor2, t)
-    noisy = [c + s * gen.standard_normal(n) if s > 0 else c.copy()
-             for c, s in zip((clean1, clean2), sig, strict=True)]
+    noisy = [
+        c + s * gen.standard_normal(n) if s > 0 else c.copy()
+        for c, s in zip((clean1, clean2), sig, strict=True)
+    ]
     if quantisation > 0.0:
         noisy = [np.round(x / quantisation) * quantisation for x in noisy]
     jumps = profile.jumps[(profile.jumps >= t[0]) & (profile.jumps <= t[-1])]
     return PairRecording(
-        t=t, tg=profile(t), t1=noisy[0], t2=noisy[1], ts=float(ts), jumps=jumps.copy(),
-        t1_clean=clean1, t2_clean=clean2, noise_std=(float(sig[0]), float(sig[1])),
+        t=t,
+        tg=profile(t),
+        t1=noisy[0],
+        t2=noisy[1],
+        ts=float(ts),
+        jumps=jumps.copy(),
+        t1_clean=clean1,
+        t2_clean=clean2,
+        noise_std=(float(sig[0]), float(sig[1])),
         quantisation=float(quantisation),
     )
 
