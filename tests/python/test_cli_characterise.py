@@ -7,12 +7,16 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
 from dualprobe.cli import main
 from dualprobe.io import load_columns, write_columns
+
+if TYPE_CHECKING:
+    from dualprobe.simulate import GasProfile
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -200,3 +204,96 @@ def characterise_csv(
     assert t_out is not None and t_in is not None
     np.testing.assert_array_equal(t_out, t_in)  # one output row per input row, same stamps
     return document, columns["T_g_hat"]
+
+
+def gas_steps(duration: float, rng: np.random.Generator) -> GasProfile:
+    """Gas steps of 100-300 K between 300 K and 1000 K, at times off any sample grid."""
+    from dualprobe import simulate
+
+    times = np.cumsum(rng.uniform(80.0, 140.0, size=int(duration / 80.0) + 1))
+    times = times[times < duration - 40.0] + rng.uniform(0.0, 1.0)
+    levels = [rng.uniform(400.0, 700.0)]
+    for _ in times:
+        size = rng.uniform(100.0, 300.0)
+        up = levels[-1] + size <= 1000.0 and (levels[-1] - size < 300.0 or rng.random() < 0.5)
+        levels.append(levels[-1] + size if up else levels[-1] - size)
+    return simulate.multistep_profile(duration, levels=levels, step_times=times)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("noise", "seed"), [((0.01, 0.01), 11), ((0.1, 0.1), 12), ((0.03, 0.08), 13)]
+)
+def test_pt100_pair_at_10_hz_with_defaults(
+    noise: tuple[float, float],
+    seed: int,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    simulate = pytest.importorskip("dualprobe.simulate")
+    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
+    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
+    rng = np.random.default_rng(seed)
+    duration, taus = 900.0, (12.48, 28.95)
+    rec = simulate.simulate_pair(
+        gas_steps(duration, rng),
+        simulate.SensorModel((taus[0],)),
+        simulate.SensorModel((taus[1],)),
+        ts=0.1,
+        duration=duration,
+        noise_std=noise,
+        rng=rng,
+    )
+    path = tmp_path / "pt100.csv"
+    rec.to_csv(path)
+    document, gas_hat = characterise_csv(capsys, path, tmp_path, "--reference", "T_g")
+    assert document["status"] == "ok"
+    assert document["sample_interval"] == pytest.approx(0.1, rel=1e-9)  # from the time column
+    sensors = document["sensors"]
+    assert isinstance(sensors, list)
+    for sensor, tau in zip(sensors, taus, strict=True):
+        assert sensor["time_constants"][0] == pytest.approx(tau, rel=0.03)  # issue 2: 3 %
+    # A usable reconstruction: issue 7 asks for at most 6 % of the fast sensor's own RMSE at
+    # 0.1 K noise, samples right beside a gas jump excluded.
+    keep = ~rec.jump_mask(margin=1) & np.isfinite(gas_hat)
+    assert keep.mean() > 0.99  # NaN only at the very ends / beside jumps
+    rmse_hat = np.sqrt(np.mean((gas_hat[keep] - rec.tg[keep]) ** 2))
+    rmse_sensor = np.sqrt(np.mean((rec.t1[keep] - rec.tg[keep]) ** 2))
+    assert rmse_hat < 0.06 * rmse_sensor
+    reconstruction = document["reconstruction"]
+    assert isinstance(reconstruction, dict) and reconstruction["rmse_vs_reference"] > 0
+
+
+@pytest.mark.slow
+def test_thermocouple_pair_at_1_khz_with_defaults(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    simulate = pytest.importorskip("dualprobe.simulate")
+    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
+    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
+    rng = np.random.default_rng(21)
+    duration, taus = 20.0, (0.020, 0.080)
+    profile = simulate.fluctuating_profile(duration, mean=550.0, std=10.0, bandwidth=5.0, rng=rng)
+    rec = simulate.simulate_pair(
+        profile,
+        simulate.SensorModel((taus[0],)),
+        simulate.SensorModel((taus[1],)),
+        ts=1e-3,
+        duration=duration,
+        noise_std=0.05,
+        rng=rng,
+    )
+    path = tmp_path / "tc.csv"
+    rec.to_csv(path)
+    document, gas_hat = characterise_csv(capsys, path, tmp_path)
+    assert document["status"] == "ok"
+    sensors = document["sensors"]
+    assert isinstance(sensors, list)
+    for sensor, tau in zip(sensors, taus, strict=True):
+        assert sensor["time_constants"][0] == pytest.approx(tau, rel=0.02)  # issue 2: 2 %
+    # Usable: far closer to the gas than the fast sensor, which lags a 5 Hz band by up to 32 deg
+    # (35 % is issue 7's bound for small-signal data).
+    keep = np.isfinite(gas_hat)
+    rmse_hat = np.sqrt(np.mean((gas_hat[keep] - rec.tg[keep]) ** 2))
+    rmse_sensor = np.sqrt(np.mean((rec.t1[keep] - rec.tg[keep]) ** 2))
+    assert rmse_hat < 0.35 * rmse_sensor
