@@ -76,7 +76,7 @@ def _figure(
     est = characterisation.estimate
     fig, (full, zoom) = plt.subplots(2, 1, figsize=(10, 8), constrained_layout=True)
     for axis in (full, zoom):
-        axis.plot(t, tg, color="black", lw=1.0, label="true gas temperature $T_g$")
+        axis.plot(t, tg, color="black", lw=1.0, zorder=5, label="true gas temperature $T_g$")
         axis.plot(t, t1, color="tab:blue", lw=1.0, label=f"sensor 1 (tau {TRUE_TAUS[0]} s)")
         axis.plot(t, t2, color="tab:orange", lw=1.0, label=f"sensor 2 (tau {TRUE_TAUS[1]} s)")
         axis.plot(
