@@ -1,0 +1,160 @@
+/*
+ * dualprobe C API: the fixed-memory dual-sensor estimator and the gas-temperature
+ * reconstruction for firmware, in the CMSIS-DSP style (caller-owned instance structs,
+ * init / reset / update / solve / reconstruct functions, float only).
+ *
+ * Valid C99 and C++. No heap, no exceptions, no RTTI, no static initialisers: an instance is
+ * plain storage whose size is fixed at compile time; it may live in .bss, on the stack or in a
+ * struct. Every function is re-entrant on distinct instances. Pointers must be non-null unless
+ * said otherwise (a null instance or output pointer gives DP_STATUS_INVALID_ARGUMENT).
+ *
+ * Typical ECU use (see firmware_sim/src/firmware.c):
+ *   dp_diff_instance_f32 est;  dp_recon_instance_f32 rec;
+ *   dp_diff_init_f32(&est, &diff_config);              // once
+ *   every tick:  dp_diff_update_f32(&est, t1, t2);      // O(1), a few dozen instructions
+ *                dp_recon_update_f32(&rec, t1, t2, &gas);
+ *   every N ticks: dp_diff_solve_f32(&est, &result);    // a few thousand instructions
+ *                  if ok: dp_recon_set_time_constants_f32(&rec, result.tau1, result.tau2);
+ *   after a sensor fault: dp_diff_break_chain_f32(&est) so no difference spans the gap.
+ */
+#ifndef DUALPROBE_DUALPROBE_H
+#define DUALPROBE_DUALPROBE_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Mirrors dualprobe::Status one for one. */
+typedef enum dp_status {
+  DP_STATUS_OK = 0,
+  DP_STATUS_INSUFFICIENT_EXCITATION = 1, /* too few rows, or signals that do not move enough */
+  DP_STATUS_INFEASIBLE = 2,              /* a solution that is not physical (b outside (0,1), ...) */
+  DP_STATUS_NON_FINITE_INPUT = 3,        /* NaN/Inf sample refused, state untouched */
+  DP_STATUS_INVALID_ARGUMENT = 4,        /* bad configuration or null pointer, state untouched */
+  DP_STATUS_NOT_READY = 5                /* no result yet (e.g. first sample of a reconstruction) */
+} dp_status;
+
+/* Mirrors dualprobe::Method. */
+typedef enum dp_method { DP_METHOD_LS = 0, DP_METHOD_TLS = 1, DP_METHOD_GTLS = 2 } dp_method;
+
+/* Mirrors dualprobe::ReconstructionSource. */
+typedef enum dp_source {
+  DP_SOURCE_SENSOR1 = 0,
+  DP_SOURCE_SENSOR2 = 1,
+  DP_SOURCE_WEIGHTED = 2 /* w = tau2^2 / (tau1^2 + tau2^2) on sensor 1 */
+} dp_source;
+
+/* ---- Difference-equation estimator (design 1.2, paper eqs. 10-12) ------------------------ */
+
+typedef struct dp_diff_config_f32 {
+  float sample_interval; /* Ts in seconds, > 0 */
+  dp_method method;
+  float sigma1;     /* white-noise std of sensor 1 in K, > 0 for GTLS */
+  float sigma2;     /* white-noise std of sensor 2 in K, > 0 for GTLS */
+  float forgetting; /* lambda in (0, 1]; 1 = no forgetting */
+} dp_diff_config_f32;
+
+typedef struct dp_diff_result_f32 {
+  dp_status status; /* the other fields are meaningful only when DP_STATUS_OK */
+  float beta;
+  float b1;
+  float b2;
+  float tau1; /* s */
+  float tau2; /* s */
+  float eigenvalue_ratio; /* smallest / second-smallest eigenvalue, near 0 = well identified */
+} dp_diff_result_f32;
+
+/* Storage for one estimator; the layout is private to the implementation (a checked
+ * static_assert ties it to dualprobe::DifferenceEstimator<float>). */
+#define DP_DIFF_INSTANCE_BYTES 64
+typedef struct dp_diff_instance_f32 {
+  union {
+    uint32_t words[DP_DIFF_INSTANCE_BYTES / 4];
+    float align_float;
+    void *align_pointer;
+  } storage;
+} dp_diff_instance_f32;
+
+/* Configures and clears. On DP_STATUS_INVALID_ARGUMENT the instance is still initialised (so
+ * later calls are defined) but unconfigured: solve then reports DP_STATUS_INVALID_ARGUMENT. */
+dp_status dp_diff_init_f32(dp_diff_instance_f32 *instance, const dp_diff_config_f32 *config);
+
+/* Clears the accumulated data, keeps the configuration. */
+void dp_diff_reset_f32(dp_diff_instance_f32 *instance);
+
+/* Forgets the previous sample but keeps the accumulated data: call when a sensor was faulted,
+ * so the next update starts a new chain of differences instead of spanning the gap. */
+void dp_diff_break_chain_f32(dp_diff_instance_f32 *instance);
+
+/* One sample pair (K). O(1). A non-finite sample returns DP_STATUS_NON_FINITE_INPUT and leaves
+ * the state untouched. */
+dp_status dp_diff_update_f32(dp_diff_instance_f32 *instance, float t1, float t2);
+
+/* block_size sample pairs, exactly as block_size calls of dp_diff_update_f32; returns the
+ * first non-ok status (the refused samples are skipped, the others accumulated). */
+dp_status dp_diff_update_block_f32(dp_diff_instance_f32 *instance, const float *t1,
+                                   const float *t2, uint32_t block_size);
+
+/* Solves the accumulated scatter; the instance is not modified. Returns result->status. */
+dp_status dp_diff_solve_f32(const dp_diff_instance_f32 *instance, dp_diff_result_f32 *result);
+
+/* Diagnostics: effective number of rows (sum of lambda^age), and the packed upper triangle of
+ * the 3x3 scatter [S00 S01 S02 S11 S12 S22] of z = [dT1(k), dT12(k-1), dT2(k)]. */
+float dp_diff_rows_f32(const dp_diff_instance_f32 *instance);
+dp_status dp_diff_scatter_f32(const dp_diff_instance_f32 *instance, float packed[6]);
+
+/* ---- Exact-inverse reconstruction (design 1.3) ------------------------------------------- */
+
+typedef struct dp_recon_config_f32 {
+  float sample_interval; /* Ts in seconds, > 0 */
+  float tau1;            /* s, > 0 */
+  float tau2;            /* s, > 0 */
+  dp_source source;
+  float lowpass_tau; /* s; 0 = no low-pass stage */
+} dp_recon_config_f32;
+
+#define DP_RECON_INSTANCE_BYTES 80
+typedef struct dp_recon_instance_f32 {
+  union {
+    uint32_t words[DP_RECON_INSTANCE_BYTES / 4];
+    float align_float;
+    void *align_pointer;
+  } storage;
+} dp_recon_instance_f32;
+
+/* Configures and clears. Same contract as dp_diff_init_f32 on a bad configuration (update
+ * then returns DP_STATUS_INVALID_ARGUMENT until a valid init). */
+dp_status dp_recon_init_f32(dp_recon_instance_f32 *instance, const dp_recon_config_f32 *config);
+
+/* Clears the sample history (the next update only primes), keeps the configuration. */
+void dp_recon_reset_f32(dp_recon_instance_f32 *instance);
+
+/* Retunes to new time constants (e.g. after each successful solve) without losing the
+ * previous sample, so the output continues without a gap. Invalid taus: the instance is left
+ * as it was and DP_STATUS_INVALID_ARGUMENT is returned. */
+dp_status dp_recon_set_time_constants_f32(dp_recon_instance_f32 *instance, float tau1,
+                                          float tau2);
+
+/* Consumes T1(k), T2(k); on DP_STATUS_OK writes the gas temperature over [k-1, k) to *gas.
+ * The first sample after init/reset only primes and returns DP_STATUS_NOT_READY. A non-finite
+ * sample returns DP_STATUS_NON_FINITE_INPUT, state untouched, *gas untouched. */
+dp_status dp_recon_update_f32(dp_recon_instance_f32 *instance, float t1, float t2, float *gas);
+
+/* block_size calls of dp_recon_update_f32; gas[i] is NaN where no value was formed. Returns
+ * the first status other than ok / not_ready, else ok. */
+dp_status dp_recon_block_f32(dp_recon_instance_f32 *instance, const float *t1, const float *t2,
+                             float *gas, uint32_t block_size);
+
+/* Name of a status ("ok", "infeasible", ...); "unknown" for values outside the enum. */
+const char *dp_status_string(dp_status status);
+
+/* Causal Kalman reconstruction: reserved for the dp_kalman_*_f32 family (issue: noise-robust
+ * reconstruction on the ECU); the firmware budget report already has a slot for its cost. */
+
+#ifdef __cplusplus
+} /* extern "C" */
+#endif
+
+#endif /* DUALPROBE_DUALPROBE_H */

@@ -1,0 +1,19 @@
+// Compiled with -fno-exceptions -fno-rtti: instantiates every core template the firmware uses.
+#include "dualprobe/dualprobe.hpp"
+
+namespace dualprobe {
+template class DifferenceEstimator<float>;
+template class DifferenceEstimator<double>;
+template class InverseReconstructor<float>;
+template class InverseReconstructor<double>;
+}  // namespace dualprobe
+
+float no_exceptions_check_entry(float t1, float t2) {
+  dualprobe::DifferenceEstimator<float> estimator;
+  dualprobe::DifferenceConfig<float> config;
+  config.sigma1 = 0.1f;
+  config.sigma2 = 0.1f;
+  estimator.configure(config);
+  estimator.update(t1, t2);
+  return estimator.solve().tau1;
+}
