@@ -466,6 +466,14 @@ def _check_times(t: np.ndarray) -> np.ndarray:
     return t
 
 
+def _check_profile(profile: object) -> None:
+    if not isinstance(profile, GasProfile):
+        raise TypeError(
+            f"expected a GasProfile, got {type(profile).__name__}; wrap sampled data with "
+            "GasProfile.from_samples"
+        )
+
+
 def _segments(profile: GasProfile, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Union grid of sample times and profile breaks inside (t0, t_end).
 
@@ -490,6 +498,7 @@ def simulate_sensor(
     unless ``initial`` (an output temperature) is given.
     """
     t = _check_times(t)
+    _check_profile(profile)
     seen = profile.shifted(sensor.delay) if sensor.delay > 0.0 else profile
     u0 = float(seen(t[0]))
     x0 = u0 if initial is None else float(initial) / sensor.gain
@@ -612,6 +621,8 @@ def _phi_scalar(z: float) -> tuple[float, float, float, float]:
             for j in range(1, 30):
                 term *= -z / (j + m + 1)
                 total += term
+                if abs(term) < 1e-17 * abs(total):
+                    break
             out.append(z * total)
         return out[0], out[1], out[2], out[3]
     g0 = -math.expm1(-z)
@@ -647,6 +658,7 @@ def simulate_hysteretic_sensor(
     either time constant, so the error is second order.)
     """
     t = _check_times(t)
+    _check_profile(profile)
     if not (tau_heat > 0.0 and tau_cool > 0.0):
         raise ValueError("simulate_hysteretic_sensor: time constants must be > 0")
     x = float(profile(t[0])) if initial is None else float(initial)

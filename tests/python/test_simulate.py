@@ -351,3 +351,5 @@ def test_bad_times_rejected() -> None:
         simulate_pair(
             constant_profile(1.0), PT100_1P5MM_FIRST, PT100_1P5MM_FIRST, ts=0.0, duration=1.0
         )
+    with pytest.raises(TypeError, match="GasProfile"):
+        simulate_sensor(np.sin, PT100_1P5MM_FIRST, np.arange(3.0))  # type: ignore[arg-type]

@@ -146,9 +146,12 @@ def estimate(
     m = rows.shape[0]
     if m < 3:
         return _failed("insufficient_excitation", method, m)
-    # Exponential forgetting: the newest row has weight 1 (underflow to 0 is harmless).
-    weights = float(forgetting) ** np.arange(m - 1, -1, -1, dtype=float)
-    weighted = rows * np.sqrt(weights)[:, None]
+    if forgetting < 1.0:
+        # Exponential forgetting: the newest row has weight 1 (underflow to 0 is harmless).
+        weights = float(forgetting) ** np.arange(m - 1, -1, -1, dtype=float)
+        weighted = rows * np.sqrt(weights)[:, None]
+    else:
+        weighted = rows
     gram = weighted[:, :2].T @ weighted[:, :2]
     d = np.diag(gram)
     if not np.all(d > 0.0):
