@@ -1,0 +1,74 @@
+/* The ECU firmware loop: two Pt-100 channels read as ADC counts every tick, converted to
+ * temperature (Callendar-Van Dusen inverse), checked for open/short faults, fed to the
+ * dual-sensor estimator every tick, solved every `solve_every` ticks, and the gas temperature
+ * reconstructed every tick with the latest good time constants.
+ *
+ * Fault handling: a faulted channel flags the tick, pauses the estimator and the
+ * reconstruction, and breaks the estimator's difference chain (no row spans the gap). The
+ * channel must read healthy for `resume_after` consecutive ticks before both resume; the
+ * accumulated scatter (and so the estimate) survives the fault. */
+#ifndef FIRMWARE_FIRMWARE_H
+#define FIRMWARE_FIRMWARE_H
+
+#include <stdint.h>
+
+#include "adc.h"
+#include "dualprobe/dualprobe.h"
+
+/* Calibration block of the input stream, little-endian, 56 bytes (see README). */
+#define FIRMWARE_MAGIC 0x57465044ul /* "DPFW" */
+#define FIRMWARE_VERSION 1u
+#define FIRMWARE_HEADER_BYTES 56u
+
+typedef struct firmware_config {
+  uint32_t ticks;
+  float sample_interval; /* s, the tick period */
+  dp_method method;
+  float sigma1, sigma2; /* K */
+  float forgetting;
+  uint32_t solve_every;  /* ticks between solves, >= 1 */
+  uint32_t resume_after; /* healthy ticks needed after a fault */
+  dp_source source;
+  float lowpass_tau;               /* s, 0 = none */
+  float initial_tau1, initial_tau2; /* s; 0 = no reconstruction before the first good solve */
+} firmware_config;
+
+/* Tick flags. */
+#define FLAG_CH1_OPEN 0x01u
+#define FLAG_CH1_SHORT 0x02u
+#define FLAG_CH2_OPEN 0x04u
+#define FLAG_CH2_SHORT 0x08u
+#define FLAG_PAUSED 0x10u    /* estimator not updated this tick */
+#define FLAG_GAS_VALID 0x20u /* gas holds a reconstruction */
+#define FLAG_TAUS_VALID 0x40u
+#define FLAG_SOLVED 0x80u /* a solve ran this tick; see tick_output.result */
+
+typedef struct firmware_state {
+  firmware_config config;
+  dp_diff_instance_f32 estimator;
+  dp_recon_instance_f32 reconstruction;
+  uint32_t tick;
+  uint32_t healthy_run; /* consecutive healthy ticks */
+  uint8_t paused;
+  uint8_t taus_valid;
+} firmware_state;
+
+typedef struct tick_output {
+  uint32_t tick;
+  uint32_t flags;
+  float t1, t2;  /* C; NaN for a faulted channel */
+  float gas;     /* C; NaN unless FLAG_GAS_VALID */
+  dp_diff_result_f32 result; /* valid with FLAG_SOLVED */
+} tick_output;
+
+/* Parses and validates the 56-byte calibration block; returns 0 or a negative error. */
+int firmware_parse_header(const uint8_t header[FIRMWARE_HEADER_BYTES], firmware_config *config);
+/* Returns DP_STATUS_OK, or the init status of the estimator / reconstruction. */
+dp_status firmware_init(firmware_state *state, const firmware_config *config);
+void firmware_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, tick_output *out);
+
+/* Runs the whole input stream at `path`, one text line per tick on stdout (README: output
+ * format); returns the process exit status (0 ok, 2 bad input). */
+int firmware_run(const char *path);
+
+#endif
