@@ -1,0 +1,115 @@
+"""`dualprobe diagnose DATA.csv --input T_ref --output T_m`: name the effects a first-order
+sensor model is missing, add them one by one and show the gap shrink."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+from typing import Any
+
+from dualprobe.cli.common import UsageError, handle_errors
+
+__all__ = ["register", "run"]
+
+
+def _positive(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def _check_file_target(option: str, path: Path) -> None:
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory")
+    if not path.parent.is_dir():
+        raise UsageError(f"{option} {path}: directory {path.parent} does not exist")
+
+
+def _check_directory_target(option: str, path: Path) -> None:
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"{option} {path}: exists and is not a directory")
+    parent = path.parent
+    if not path.exists() and not parent.is_dir():
+        raise UsageError(f"{option} {path}: parent directory {parent} does not exist")
+
+
+def register(subparsers: Any) -> None:
+    parser = subparsers.add_parser(
+        "diagnose",
+        help="find where a first-order sensor model and the measurement disagree and name the "
+        "missing effect(s)",
+        description="Compare the sensor under test with a first-order unity-gain simulation "
+        "driven by the reference (fast) measurement of the gas temperature, localise the "
+        "disagreement, and add effects from the catalogue extra_pole, hysteresis, dead_time, "
+        "gain, offset, nonlinearity one at a time while each is statistically and practically "
+        "significant.",
+    )
+    parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
+    parser.add_argument(
+        "--input",
+        required=True,
+        metavar="COL",
+        help="reference (fast) measurement of the gas temperature, e.g. T_ref",
+    )
+    parser.add_argument(
+        "--output", required=True, metavar="COL", help="sensor under test, e.g. T_m"
+    )
+    parser.add_argument(
+        "--time",
+        default="t",
+        metavar="COL",
+        help="time column in seconds (default: t); '' if the file has none, then give "
+        "--sample-interval",
+    )
+    parser.add_argument(
+        "--sample-interval",
+        type=_positive,
+        default=None,
+        metavar="TS",
+        help="sample interval in seconds when there is no time column",
+    )
+    parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
+    parser.add_argument(
+        "--report",
+        default=None,
+        metavar="DIR",
+        help="write a Markdown report with figures into DIR (created if needed)",
+    )
+    parser.add_argument(
+        "--quiet", action="store_true", help="print nothing but errors (no summary)"
+    )
+    parser.set_defaults(run=run)
+
+
+@handle_errors
+def run(args: argparse.Namespace) -> int:
+    from dualprobe.diagnose import diagnose_file, write_json
+
+    if args.sample_interval is None and not args.time:
+        raise UsageError("diagnose: --time '' needs --sample-interval TS")
+    if args.input == args.output:
+        raise UsageError(f"diagnose: --input and --output are the same column {args.input!r}")
+    # Refuse unusable output paths before the computation.
+    if args.json is not None:
+        _check_file_target("--json", Path(args.json))
+    if args.report is not None:
+        _check_directory_target("--report", Path(args.report))
+    result = diagnose_file(
+        args.data,
+        input_column=args.input,
+        output_column=args.output,
+        time=args.time or None,
+        sample_interval=args.sample_interval,
+    )
+    if args.json is not None:
+        write_json(result, args.json)
+    if args.report is not None:
+        result.write_report(args.report)
+    if not args.quiet:
+        print(result.summary())
+    return 0
