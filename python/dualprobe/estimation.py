@@ -1,0 +1,570 @@
+"""High-level characterisation of a dual-sensor pair (design.md section 4).
+
+``characterise_pair`` is what ``dualprobe characterise`` calls. ``method="auto"`` (default)
+runs the state-variable-filter (SVF) cross-relation estimator of
+:mod:`dualprobe.reference.svf` with
+
+* the noise level of each sensor estimated from its own signal (:func:`estimate_noise_std`)
+  unless given;
+* the filter time constant ``tf`` chosen from the data: a coarse geometric scan of tf over
+  the record's time scales (first-order fits), then the fixed point
+  ``tf = kappa * tau_fast(tf)`` (kappa = 0.5 for order 1 and the hysteresis split, 0.25 for
+  order 2; see the measurements in :mod:`dualprobe.reference.svf`);
+* an identifiability check from the generalised eigenvalues: k eigenvalues within the
+  noise band (gap statistic below ``GAP_THRESHOLD``) mean a (k-1)-degree factor common to
+  both sensors. Then only the distinct part is identifiable: the reduced-order fit is
+  reported (``identifiability["identifiable"] = False``, with a message).
+
+``method="ls" | "tls" | "gtls"`` runs the paper's difference-equation method (design.md 1.2)
+through the C++ core (or the NumPy reference if the core is not built).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dualprobe.reference import svf
+
+__all__ = [
+    "GAP_THRESHOLD",
+    "METHODS",
+    "PairEstimate",
+    "characterise_pair",
+    "compare_methods",
+    "estimate_noise_std",
+]
+
+METHODS = ("auto", "svf", "ls", "tls", "gtls")
+# An eigenvalue counts as "noise only" when its excess over the smallest one is below this
+# many standard deviations of the noise-only spread: exact common factors give 0-2.5 (25
+# simulated records, 10-100 Hz, 0.01-0.1 K), identifiable pairs >= 160 at 0.01 K.
+GAP_THRESHOLD = 10.0
+KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
+_NOISE_DIFF_ORDER = 4  # fourth differences: the signal's share is ~(w Ts)^4, noise gain sqrt(70)
+_MIN_SAMPLES = 20
+
+
+class _InputError(ValueError):
+    """Fallback when dualprobe.io is unavailable."""
+
+
+def _input_error() -> type[ValueError]:
+    try:
+        from dualprobe.io import InputError
+    except ImportError:  # pragma: no cover - io is part of the package
+        return _InputError
+    return InputError
+
+
+@dataclass(frozen=True)
+class PairEstimate:
+    """Characterisation of a sensor pair; time constants in seconds, per sensor largest first.
+
+    ``status``: ok | insufficient_excitation | infeasible (| invalid_argument from the core).
+    ``details`` holds the numbers behind the estimate (filter time constant, eigenvalues,
+    ...) and ``message`` when the status is not ok.
+    """
+
+    status: str
+    method: str
+    order: int
+    sample_interval: float
+    time_constants: tuple[tuple[float, ...], tuple[float, ...]]
+    beta: float | None
+    noise_std: tuple[float, float]
+    time_constants_heat: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    time_constants_cool: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    identifiability: dict[str, object] = field(default_factory=dict)
+    details: dict[str, object] = field(default_factory=dict)
+
+
+def estimate_noise_std(x: np.ndarray) -> float:
+    """Standard deviation of the white noise on a sampled sensor signal.
+
+    Robust scale (MAD) of the fourth differences divided by their noise gain sqrt(70). A
+    sensor signal is smooth on the sample grid, so its fourth differences ~ Ts^4 x'''' are
+    far below the noise; the few samples beside a kink (an off-grid gas step) are outliers the
+    median ignores. If more than half of the differences are zero (coarse ADC quantisation,
+    noise-free data) the RMS of the differences is used instead (quantisation noise
+    q/sqrt(12) when the signal moves; 0 for an exactly constant or polynomial signal).
+    """
+    arr = np.asarray(x, dtype=float)
+    k = _NOISE_DIFF_ORDER
+    if arr.ndim != 1 or arr.size < k + 2:
+        raise _input_error()(f"estimate_noise_std: need a 1-D array of >= {k + 2} samples")
+    if not np.all(np.isfinite(arr)):
+        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
+        raise _input_error()(f"estimate_noise_std: sample {bad} is not finite")
+    d = np.diff(arr - arr[0], n=k)
+    gain = math.sqrt(math.comb(2 * k, k))
+    mad = float(np.median(np.abs(d - np.median(d))))
+    if mad > 0.0:
+        return 1.482602218505602 * mad / gain  # MAD -> Gaussian standard deviation
+    return float(np.sqrt(np.mean(d * d))) / gain
+
+
+# --------------------------------------------------------------------------------------------
+# Input checking
+# --------------------------------------------------------------------------------------------
+
+
+def _check_inputs(
+    t1: np.ndarray, t2: np.ndarray, ts: float, method: str, order: int, hysteresis: bool
+) -> tuple[np.ndarray, np.ndarray, float]:
+    error = _input_error()
+    a = np.asarray(t1, dtype=float)
+    b = np.asarray(t2, dtype=float)
+    if a.ndim != 1 or a.shape != b.shape:
+        raise error(f"characterise_pair: t1 and t2 must be 1-D of equal length, got {a.shape} "
+                    f"and {b.shape}")
+    for name, x in (("t1", a), ("t2", b)):
+        bad = np.flatnonzero(~np.isfinite(x))
+        if bad.size:
+            raise error(f"characterise_pair: {name}[{int(bad[0])}] is not finite")
+    try:
+        ts = float(ts)
+    except (TypeError, ValueError):
+        raise error(f"characterise_pair: sample interval must be a number, got {ts!r}") from None
+    if not (math.isfinite(ts) and ts > 0.0):
+        raise error(f"characterise_pair: sample interval must be finite and > 0, got {ts!r}")
+    if method not in METHODS:
+        raise error(f"characterise_pair: method must be one of {', '.join(METHODS)}, "
+                    f"got {method!r}")
+    if order not in (1, 2):
+        raise error(f"characterise_pair: order must be 1 or 2, got {order!r}")
+    if method in ("ls", "tls", "gtls") and (order != 1 or hysteresis):
+        raise error(f"characterise_pair: method {method!r} (difference equation) is first order "
+                    "without hysteresis; use method 'auto' for order 2 or hysteresis")
+    if hysteresis and order != 1:
+        raise error("characterise_pair: the hysteresis-aware estimate is first order; "
+                    "use order=1 with hysteresis=True")
+    return a, b, ts
+
+
+def _noise_levels(
+    t1: np.ndarray, t2: np.ndarray, noise_std: float | Sequence[float] | None
+) -> tuple[tuple[float, float], str]:
+    error = _input_error()
+    if noise_std is None:
+        return (estimate_noise_std(t1), estimate_noise_std(t2)), "estimated"
+    values = np.atleast_1d(np.asarray(noise_std, dtype=float)).ravel()
+    if values.size == 1:
+        values = np.repeat(values, 2)
+    if values.size != 2 or not np.all(np.isfinite(values)) or np.any(values < 0.0):
+        raise error(f"characterise_pair: noise_std must be one or two finite values >= 0, "
+                    f"got {noise_std!r}")
+    return (float(values[0]), float(values[1])), "given"
+
+
+# --------------------------------------------------------------------------------------------
+# SVF path
+# --------------------------------------------------------------------------------------------
+
+
+def _fast_time_constant(res: svf.SvfResult) -> float:
+    """Largest time constant of the faster sensor (NaN when the fit is unusable)."""
+    if res.status != "ok":
+        return float("nan")
+    fast = min(res.time_constants[0][0], res.time_constants[1][0])
+    return fast if math.isfinite(fast) and fast > 0.0 else float("nan")
+
+
+def _safe_estimate(
+    t1: np.ndarray, t2: np.ndarray, ts: float, **kwargs: Any
+) -> svf.SvfResult | None:
+    try:
+        return svf.estimate(t1, t2, ts, **kwargs)
+    except (np.linalg.LinAlgError, ValueError):
+        return None
+
+
+def choose_filter_time_constant(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    order: int,
+    sigma: tuple[float, float],
+) -> tuple[float, list[float]]:
+    """Filter time constant from the data: ``tf = kappa * tau_fast`` at its fixed point.
+
+    A geometric scan (factor 4) from 2 Ts to a tenth of the record gives first-order fits; the
+    scan point closest to its own fixed point starts up to four refinement steps. Returns
+    (tf, the sequence of tf tried after the scan).
+    """
+    kappa = KAPPA[order]
+    duration = (t1.size - 1) * ts
+    tf_min = ts
+    tf_max = max(tf_min, duration / 10.0)
+    grid = [2.0 * ts * 4.0**j for j in range(64) if 2.0 * ts * 4.0**j <= tf_max] or [tf_max]
+    best: tuple[float, float] | None = None  # (log mismatch, tf)
+    for tf in grid:
+        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1])
+        fast = _fast_time_constant(res) if res is not None else float("nan")
+        if not math.isfinite(fast):
+            continue
+        mismatch = abs(math.log(tf / (kappa * fast)))
+        if best is None or mismatch < best[0]:
+            best = (mismatch, tf)
+    if best is None:
+        return grid[len(grid) // 2], []
+    tf = best[1]
+    history = [tf]
+    for _ in range(4):
+        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1])
+        fast = _fast_time_constant(res) if res is not None else float("nan")
+        if not math.isfinite(fast):
+            break
+        new = min(max(kappa * fast, tf_min), tf_max)
+        history.append(new)
+        converged = abs(new / tf - 1.0) < 0.05
+        tf = new
+        if converged:
+            break
+    return tf, history
+
+
+def _null_dimension(
+    res: svf.SvfResult, ts: float, order: int, sigma: tuple[float, float], hysteresis: bool
+) -> tuple[int, np.ndarray, float]:
+    """Number of generalised eigenvalues within the noise band of the smallest, the gap
+    statistics and the effective number of independent rows."""
+    disc = svf.discretise_filter(res.tf, ts, order + 1)
+    theta = res.theta
+    if hysteresis:  # equation-error noise of the split model ~ that of the mean time constants
+        theta = np.array([0.5 * (theta[0] + theta[1]), 0.5 * (theta[2] + theta[3]), theta[4]])
+    n_eff = svf.effective_samples(disc, theta, order, sigma[0], sigma[1], res.rows)
+    mu = np.asarray(res.eigenvalues, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gaps = (mu / mu[0] - 1.0) * math.sqrt(n_eff / 2.0)
+    gaps = np.where(np.isfinite(gaps), gaps, np.inf)
+    gaps[0] = 0.0
+    return int(np.count_nonzero(gaps < GAP_THRESHOLD)), gaps, n_eff
+
+
+def _resolved(taus: tuple[float, ...], poly: tuple[float, ...]) -> tuple[tuple[float, ...], str]:
+    """Time constants of one sensor's polynomial, with a note when only part is resolved."""
+    if all(math.isfinite(t) and t > 0.0 for t in taus):
+        return taus, ""
+    c = poly[0]
+    if len(poly) == 2 and math.isfinite(c) and c > 0.0:
+        d = poly[1]
+        if d <= 0.0:
+            return (c,), "second time constant below resolution (first-order response)"
+        if c * c < 4.0 * d:
+            return (0.5 * c, 0.5 * c), "complex pole pair: reported as a double pole"
+    return taus, "no positive real time constants"
+
+
+def _beta(taus: tuple[tuple[float, ...], tuple[float, ...]], ts: float) -> float | None:
+    if len(taus[0]) != 1 or len(taus[1]) != 1:
+        return None
+    b1 = -math.expm1(-ts / taus[0][0])
+    b2 = -math.expm1(-ts / taus[1][0])
+    return b2 / b1
+
+
+def _svf_estimate(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    order: int,
+    hysteresis: bool,
+    sigma: tuple[float, float],
+    sigma_source: str,
+    tf: float | None,
+    method: str,
+) -> PairEstimate:
+    details: dict[str, object] = {"noise_std_source": sigma_source}
+    if tf is None:
+        tf, history = choose_filter_time_constant(t1, t2, ts, order, sigma)
+        details["filter_time_constant_history"] = history
+        details["filter_time_constant_source"] = "auto"
+    else:
+        details["filter_time_constant_source"] = "given"
+    details["filter_time_constant"] = tf
+    window = max(1, round(tf / ts))
+    kwargs: dict[str, Any] = {"tf": tf, "sigma1": sigma[0], "sigma2": sigma[1]}
+    if hysteresis:
+        kwargs.update(hysteresis=True, direction_half_window=window,
+                      dead_zone=svf.DIRECTION_DEAD_ZONE)
+        details["direction_half_window"] = window
+    nan_taus = (tuple(float("nan") for _ in range(order)),) * 2
+
+    def failed(status: str, message: str, identifiability: dict[str, object] | None = None
+               ) -> PairEstimate:
+        details["message"] = message
+        return PairEstimate(
+            status=status, method=method, order=order, sample_interval=ts,
+            time_constants=nan_taus, beta=None, noise_std=sigma,
+            identifiability=identifiability or {}, details=details,
+        )
+
+    res = _safe_estimate(t1, t2, ts, order=order, **kwargs)
+    if res is None:
+        what = "a heating or a cooling episode of each sensor" if hysteresis else "changes"
+        return failed("insufficient_excitation",
+                      f"the signals do not excite the model (need {what})")
+    k, gaps, n_eff = _null_dimension(res, ts, order, sigma, hysteresis)
+    details.update(
+        rows=res.rows, theta=res.theta.tolist(), eigenvalues=np.asarray(res.eigenvalues).tolist(),
+        effective_samples=n_eff, gap_statistics=gaps.tolist(),
+    )
+    identifiability: dict[str, object] = {
+        "identifiable": k == 1, "null_dimension": k,
+        "eigenvalue_ratio": float(res.eigenvalues[1] / res.eigenvalues[0])
+        if res.eigenvalues[0] > 0 else float("inf"),
+        "gap_statistic": float(gaps[1]),
+    }
+    if k > 1:
+        return _reduced(t1, t2, ts, order, hysteresis, sigma, method, res, k, kwargs,
+                        identifiability, details, failed)
+    return _finish(res, ts, order, hysteresis, sigma, method, identifiability, details, failed)
+
+
+def _finish(
+    res: svf.SvfResult,
+    ts: float,
+    order: int,
+    hysteresis: bool,
+    sigma: tuple[float, float],
+    method: str,
+    identifiability: dict[str, object],
+    details: dict[str, object],
+    failed: Any,
+) -> PairEstimate:
+    if hysteresis:
+        heat = res.extra["heat"]
+        cool = res.extra["cool"]
+        values = [heat[0][0], cool[0][0], heat[1][0], cool[1][0]]
+        if not all(math.isfinite(v) and v > 0.0 for v in values):
+            return failed("infeasible", "no positive heating/cooling time constants fit these "
+                          "signals", identifiability)
+        return PairEstimate(
+            status="ok", method=method, order=1, sample_interval=ts,
+            time_constants=res.time_constants, beta=_beta(res.time_constants, ts),
+            noise_std=sigma, time_constants_heat=heat, time_constants_cool=cool,  # type: ignore[arg-type]
+            identifiability=identifiability, details=details,
+        )
+    notes = []
+    taus = []
+    for i in range(2):
+        t, note = _resolved(res.time_constants[i], res.polynomials[i])
+        if note == "no positive real time constants":
+            return failed("infeasible", f"sensor {i + 1}: {note} fit these signals (check the "
+                          "columns)", identifiability)
+        if note:
+            notes.append(f"sensor {i + 1}: {note}")
+        taus.append(t)
+    if notes:
+        identifiability["notes"] = notes
+    tcs = (tuple(taus[0]), tuple(taus[1]))
+    return PairEstimate(
+        status="ok", method=method, order=order, sample_interval=ts, time_constants=tcs,
+        beta=_beta(tcs, ts), noise_std=sigma, identifiability=identifiability, details=details,
+    )
+
+
+def _reduced(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    order: int,
+    hysteresis: bool,
+    sigma: tuple[float, float],
+    method: str,
+    res: svf.SvfResult,
+    k: int,
+    kwargs: dict[str, Any],
+    identifiability: dict[str, object],
+    details: dict[str, object],
+    failed: Any,
+) -> PairEstimate:
+    """k-dimensional near-null space: report what the data do determine."""
+    if hysteresis:
+        common = _safe_estimate(t1, t2, ts, order=1, tf=kwargs["tf"], sigma1=sigma[0],
+                                sigma2=sigma[1])
+        identifiability["message"] = (
+            "heating and cooling time constants are not separately identifiable from these "
+            "signals (too few or too weak heating/cooling episodes); the common time "
+            "constants are reported")
+        if common is None or common.status != "ok":
+            return failed("insufficient_excitation", str(identifiability["message"]),
+                          identifiability)
+        return _finish(common, ts, 1, False, sigma, method, identifiability, details, failed)
+    reduced_order = order - (k - 1)
+    if reduced_order < 1:
+        message = ("the time constants are not identifiable: within the noise the two signals "
+                   "are explained by identical sensors or by no excitation (record larger "
+                   "temperature changes; check that the two sensors differ)")
+        identifiability["message"] = message
+        return failed("insufficient_excitation", message, identifiability)
+    low = _safe_estimate(t1, t2, ts, order=reduced_order, tf=kwargs["tf"], sigma1=sigma[0],
+                         sigma2=sigma[1])
+    if low is None or low.status != "ok":
+        message = "the time constants are not identifiable from these signals"
+        identifiability["message"] = message
+        return failed("insufficient_excitation", message, identifiability)
+    identifiability.update(
+        shared_pole=None,
+        shared_order=k - 1,
+        distinct_time_constants=[list(low.time_constants[0]), list(low.time_constants[1])],
+        message=(
+            f"the two sensors (nearly) share {k - 1} pole(s) (gap statistic "
+            f"{float(identifiability['gap_statistic']):.3g} < {GAP_THRESHOLD:g}): a common "
+            "pole acts like a filter on the gas temperature and cannot be seen from the two "
+            "signals, so only the distinct time constants are reported (order "
+            f"{reduced_order})"
+        ),
+    )
+    details["requested_order"] = order
+    out = _finish(low, ts, reduced_order, False, sigma, method, identifiability, details, failed)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Difference-equation path (paper)
+# --------------------------------------------------------------------------------------------
+
+
+def _difference_estimate(
+    t1: np.ndarray, t2: np.ndarray, ts: float, method: str, sigma: tuple[float, float],
+    sigma_source: str,
+) -> PairEstimate:
+    solver = method
+    if method == "gtls" and not (sigma[0] > 0.0 and sigma[1] > 0.0):
+        solver = "tls"  # noise-free data: GTLS needs a noise model, TLS is its limit
+    try:
+        from dualprobe import _core
+
+        raw = _core.estimate_difference(t1, t2, ts, solver, sigma[0], sigma[1], 1.0)
+        result = {key: raw[key] for key in ("status", "beta", "tau1", "tau2")}
+        engine = "core"
+    except ImportError:
+        from dualprobe.reference import difference
+
+        ref = difference.estimate(t1, t2, ts, solver, sigma[0], sigma[1], 1.0)
+        result = {"status": ref.status, "beta": ref.beta, "tau1": ref.tau1, "tau2": ref.tau2}
+        engine = "reference"
+    status = str(result["status"])
+    details: dict[str, object] = {"noise_std_source": sigma_source, "engine": engine,
+                                  "solver": solver}
+    taus = ((float(result["tau1"]),), (float(result["tau2"]),))
+    if status != "ok":
+        details["message"] = {
+            "insufficient_excitation": "the differenced signals do not determine the time "
+            "constants",
+            "infeasible": "no feasible first-order pair fits (beta <= 0 or b outside (0, 1))",
+        }.get(status, status.replace("_", " "))
+    return PairEstimate(
+        status=status, method=method, order=1, sample_interval=ts, time_constants=taus,
+        beta=float(result["beta"]) if status == "ok" else None, noise_std=sigma,
+        identifiability={}, details=details,
+    )
+
+
+def characterise_pair(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    *,
+    method: str = "auto",
+    order: int = 1,
+    hysteresis: bool = False,
+    noise_std: float | Sequence[float] | None = None,
+    filter_time_constant: float | None = None,
+) -> PairEstimate:
+    """Identify the two sensors' time constants from their signals alone.
+
+    ``method``: auto | svf (state-variable filter, design.md 1.4; auto = svf with the filter
+    time constant chosen from the data) or ls | tls | gtls (the paper's difference method,
+    first order only). ``noise_std``: white-noise standard deviation, one value or one per
+    sensor; estimated from the signals when None. ``filter_time_constant``: the SVF's tf in
+    seconds (None: automatic). Raises ValueError (dualprobe.io.InputError) for bad arguments;
+    estimation failures are reported in ``status`` with ``details["message"]``.
+    """
+    a, b, ts = _check_inputs(t1, t2, ts, method, order, hysteresis)
+    if filter_time_constant is not None and not (
+        math.isfinite(filter_time_constant) and filter_time_constant > 0.0
+    ):
+        raise _input_error()(f"characterise_pair: filter_time_constant must be finite and > 0, "
+                             f"got {filter_time_constant!r}")
+    sigma, source = _noise_levels(a, b, noise_std) if a.size >= _NOISE_DIFF_ORDER + 2 else (
+        (0.0, 0.0), "too few samples")
+    if a.size < _MIN_SAMPLES:
+        return PairEstimate(
+            status="insufficient_excitation", method=method, order=order, sample_interval=ts,
+            time_constants=((float("nan"),) * order,) * 2, beta=None, noise_std=sigma,
+            details={"message": f"{a.size} samples: at least {_MIN_SAMPLES} are needed"},
+        )
+    if method in ("ls", "tls", "gtls"):
+        return _difference_estimate(a, b, ts, method, sigma, source)
+    return _svf_estimate(a, b, ts, order, hysteresis, sigma, source, filter_time_constant, "svf")
+
+
+# --------------------------------------------------------------------------------------------
+# Plain difference method vs SVF (for `dualprobe bench` and the README)
+# --------------------------------------------------------------------------------------------
+
+
+def compare_methods(
+    *,
+    noise_levels: Sequence[float] = (0.01, 0.03, 0.1, 0.3),
+    sample_rates: Sequence[float] = (1.0, 10.0, 100.0),
+    time_constants: tuple[float, float] = (12.48, 28.95),
+    duration: float = 1200.0,
+    amplitude: float = 5.0,
+    seeds: int = 5,
+    methods: Sequence[str] = ("gtls", "auto"),
+    rng_seed: int = 0,
+) -> list[dict[str, float | int | str]]:
+    """Time-constant errors of the plain difference method and the SVF on the same data.
+
+    For every sample rate (Hz) and noise level (K, white, on both sensors) ``seeds`` records of
+    a unit-gain first-order pair seeing a multistep gas profile (holds ~ duration/12, steps
+    within +/- ``amplitude`` K, off the sample grid) are simulated and characterised with
+    default settings (noise level estimated from the data). One row per (rate, noise, method):
+    ``sample_rate, noise_std, method, runs, failures, tau1_median_abs_error,
+    tau2_median_abs_error, tau1_max_abs_error, tau2_max_abs_error`` (relative errors; failed
+    runs count as error 1.0 and in ``failures``).
+    """
+    from dualprobe import simulate as sim
+
+    sensors = (sim.SensorModel((time_constants[0],)), sim.SensorModel((time_constants[1],)))
+    truth = np.asarray(time_constants, dtype=float)
+    rows: list[dict[str, float | int | str]] = []
+    for rate in sample_rates:
+        ts = 1.0 / float(rate)
+        for noise in noise_levels:
+            errors: dict[str, list[np.ndarray]] = {m: [] for m in methods}
+            failures = dict.fromkeys(methods, 0)
+            for seed in range(seeds):
+                rng = np.random.default_rng([rng_seed, seed])
+                profile = sim.multistep_profile(
+                    duration, mean=20.0, amplitude=amplitude, mean_hold=duration / 12.0, rng=rng
+                )
+                rec = sim.simulate_pair(profile, *sensors, ts=ts, duration=duration,
+                                        noise_std=float(noise), rng=rng)
+                for method in methods:
+                    est = characterise_pair(rec.t1, rec.t2, ts, method=method)
+                    taus = np.array([est.time_constants[0][0], est.time_constants[1][0]])
+                    if est.status != "ok" or not np.all(np.isfinite(taus)):
+                        failures[method] += 1
+                        errors[method].append(np.ones(2))
+                    else:
+                        errors[method].append(np.abs(taus / truth - 1.0))
+            for method in methods:
+                e = np.array(errors[method])
+                rows.append({
+                    "sample_rate": float(rate), "noise_std": float(noise), "method": method,
+                    "runs": seeds, "failures": failures[method],
+                    "tau1_median_abs_error": float(np.median(e[:, 0])),
+                    "tau2_median_abs_error": float(np.median(e[:, 1])),
+                    "tau1_max_abs_error": float(np.max(e[:, 0])),
+                    "tau2_max_abs_error": float(np.max(e[:, 1])),
+                })
+    return rows
