@@ -1,0 +1,100 @@
+"""`dualprobe identify`: results, JSON and the bad-input exit codes."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualprobe import simulate as sim
+from dualprobe.cli import main
+from dualprobe.paper import identification_record
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 1.5 mm Pt-100 (Table I, second order) behind the reference thermocouple, 40 s."""
+    record = identification_record(sim.PT100_1P5MM_SECOND, duration=40.0, rng=8)
+    path = tmp_path_factory.mktemp("identify") / "step.csv"
+    table = np.column_stack([record["t"], record["u"], record["y"]])
+    np.savetxt(path, table, delimiter=",", header="t,ref,pt100", comments="", fmt="%.10g")
+    return path
+
+
+def test_identify_prints_and_writes_json(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "fit.json"
+    status = main(
+        [
+            *("identify", str(recording), "--input", "ref", "--output", "pt100"),
+            *("--order", "2", "--json", str(target)),
+        ]
+    )
+    assert status == 0
+    printed = capsys.readouterr().out
+    assert "tau_a" in printed and "fit" in printed and "AICc" in printed
+    document = json.loads(target.read_text())
+    assert document["input"] == "ref" and document["output"] == "pt100"
+    assert document["order"] == 2
+    # Same tolerances as the Table I recovery (issue 3): gain 1 %, taus 2 % / 15 %.
+    assert document["gain"] == pytest.approx(0.99, rel=0.01)
+    assert document["taus"][0] == pytest.approx(12.30, rel=0.02)
+    assert document["taus"][1] == pytest.approx(0.17, rel=0.15)
+    for key in ("taus_std", "gain_std", "rmse", "fit_percent", "aicc", "bic"):
+        assert key in document
+
+
+def test_identify_without_time_column(tmp_path: Path) -> None:
+    rng = np.random.default_rng(0)
+    u = np.repeat(rng.uniform(20, 80, 10), 30)
+    t = 0.1 * np.arange(u.size)
+    y = sim.simulate_sensor(
+        sim.GasProfile.from_samples(t, u, kind="hold"), sim.SensorModel((2.0,)), t
+    )
+    path = tmp_path / "notime.csv"
+    np.savetxt(path, np.column_stack([u, y]), delimiter=",", header="u,y", comments="")
+    target = tmp_path / "fit.json"
+    argv = ["identify", str(path), "--input", "u", "--output", "y", "--time", ""]
+    assert main(argv) == 2  # no time column and no sample interval
+    argv += ["--sample-interval", "0.1", "--hold", "zoh", "--json", str(target)]
+    assert main(argv) == 0
+    # Exact model class (ZOH input, no noise): 1e-6 relative is the optimiser's tolerance.
+    assert json.loads(target.read_text())["taus"][0] == pytest.approx(2.0, rel=1e-6)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("t,ref,pt100\n" + "".join(f"{k},1,{k}\n" for k in range(3)), "too few data rows"),
+        ("t,ref\n" + "".join(f"{k},{k}\n" for k in range(20)), "missing column 'pt100'"),
+        ("t,ref,pt100\n" + "".join(f"{k},{k},x{k}\n" for k in range(20)), "not a number"),
+        ("t,ref,pt100\n" + "".join(f"{k * k},{k},{k}\n" for k in range(20)), "irregular"),
+    ],
+)
+def test_bad_files_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], content: str, message: str
+) -> None:
+    path = tmp_path / "bad.csv"
+    path.write_text(content)
+    assert main(["identify", str(path), "--input", "ref", "--output", "pt100"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error:") and message in err and "\n" not in err
+
+
+def test_bad_arguments_exit_2(recording: Path, tmp_path: Path) -> None:
+    base = ["identify", str(recording), "--input", "ref"]
+    assert main([*base, "--output", "ref"]) == 2  # same column twice
+    assert main(["identify", str(tmp_path / "missing.csv"), "--input", "a", "--output", "b"]) == 2
+    assert main([*base, "--output", "pt100", "--order", "3"]) == 2
+    assert main([*base, "--output", "pt100", "--json", str(tmp_path / "no" / "x.json")]) == 2
+    assert main([*base, "--output", "pt100", "--sample-interval", "0.5"]) == 2  # disagrees
+
+
+def test_constant_input_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = tmp_path / "flat.csv"
+    path.write_text("t,ref,pt100\n" + "".join(f"{k},20,{20 + k}\n" for k in range(30)))
+    assert main(["identify", str(path), "--input", "ref", "--output", "pt100"]) == 3
+    assert "constant" in capsys.readouterr().err
