@@ -21,6 +21,7 @@ through the C++ core (or the NumPy reference if the core is not built).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -45,6 +46,8 @@ METHODS = ("auto", "svf", "ls", "tls", "gtls")
 # simulated records, 10-100 Hz, 0.01-0.1 K), identifiable pairs >= 160 at 0.01 K.
 GAP_THRESHOLD = 10.0
 KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
+RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std
+DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification
 _NOISE_DIFF_ORDER = 4  # fourth differences: the signal's share is ~(w Ts)^4, noise gain sqrt(70)
 _MIN_SAMPLES = 20
 
@@ -166,9 +169,9 @@ def _noise_levels(
 # --------------------------------------------------------------------------------------------
 
 
-def _fast_time_constant(res: svf.SvfResult) -> float:
+def _fast_time_constant(res: svf.SvfResult | None) -> float:
     """Largest time constant of the faster sensor (NaN when the fit is unusable)."""
-    if res.status != "ok":
+    if res is None or res.status != "ok":
         return float("nan")
     fast = min(res.time_constants[0][0], res.time_constants[1][0])
     return fast if math.isfinite(fast) and fast > 0.0 else float("nan")
@@ -189,34 +192,39 @@ def choose_filter_time_constant(
     ts: float,
     order: int,
     sigma: tuple[float, float],
+    static: str = "affine",
 ) -> tuple[float, list[float]]:
     """Filter time constant from the data: ``tf = kappa * tau_fast`` at its fixed point.
 
-    A geometric scan (factor 4) from 2 Ts to a tenth of the record gives first-order fits; the
-    scan point closest to its own fixed point starts up to four refinement steps. Returns
-    (tf, the sequence of tf tried after the scan).
+    A geometric scan (factor 4) from 2 Ts to a tenth of the record gives first-order fits
+    (``static`` model; affine by default so that a gain mismatch cannot mislead the scan);
+    the scan point closest to its own fixed point starts up to four refinement steps.
+    Returns (tf, the tf values visited after the scan).
     """
     kappa = KAPPA[order]
     duration = (t1.size - 1) * ts
     tf_min = ts
     tf_max = max(tf_min, duration / 10.0)
     grid = [2.0 * ts * 4.0**j for j in range(64) if 2.0 * ts * 4.0**j <= tf_max] or [tf_max]
+
+    def fast_at(tf: float) -> float:
+        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1],
+                             static=static, diagnostics=False)
+        return _fast_time_constant(res)
+
     best: tuple[float, float] | None = None  # (log mismatch, tf)
     for tf in grid:
-        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1])
-        fast = _fast_time_constant(res) if res is not None else float("nan")
-        if not math.isfinite(fast):
-            continue
-        mismatch = abs(math.log(tf / (kappa * fast)))
-        if best is None or mismatch < best[0]:
-            best = (mismatch, tf)
+        fast = fast_at(tf)
+        if math.isfinite(fast):
+            mismatch = abs(math.log(tf / (kappa * fast)))
+            if best is None or mismatch < best[0]:
+                best = (mismatch, tf)
     if best is None:
         return grid[len(grid) // 2], []
     tf = best[1]
     history = [tf]
     for _ in range(4):
-        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1])
-        fast = _fast_time_constant(res) if res is not None else float("nan")
+        fast = fast_at(tf)
         if not math.isfinite(fast):
             break
         new = min(max(kappa * fast, tf_min), tf_max)
@@ -228,22 +236,30 @@ def choose_filter_time_constant(
     return tf, history
 
 
-def _null_dimension(
-    res: svf.SvfResult, ts: float, order: int, sigma: tuple[float, float], hysteresis: bool
-) -> tuple[int, np.ndarray, float]:
-    """Number of generalised eigenvalues within the noise band of the smallest, the gap
-    statistics and the effective number of independent rows."""
-    disc = svf.discretise_filter(res.tf, ts, order + 1)
-    theta = res.theta
-    if hysteresis:  # equation-error noise of the split model ~ that of the mean time constants
-        theta = np.array([0.5 * (theta[0] + theta[1]), 0.5 * (theta[2] + theta[3]), theta[4]])
-    n_eff = svf.effective_samples(disc, theta, order, sigma[0], sigma[1], res.rows)
-    mu = np.asarray(res.eigenvalues, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        gaps = (mu / mu[0] - 1.0) * math.sqrt(n_eff / 2.0)
+def _effective_samples(res: svf.SvfResult, ts: float, sigma: tuple[float, float],
+                       static: str) -> float:
+    """Effective independent rows: the smaller of the noise model's and the residual's."""
+    disc = svf.discretise_filter(res.tf, ts, res.order + 1)
+    theta = svf.merged_theta(res.theta) if "heat" in res.extra else res.theta
+    model = svf.effective_samples(disc, theta, res.order, sigma[0], sigma[1], res.rows, static)
+    residual = float(res.extra["residual_effective_samples"])  # type: ignore[arg-type]
+    return min(model, residual) if math.isfinite(residual) else model
+
+
+def _gap_statistics(mu: np.ndarray, n_eff: float) -> np.ndarray:
+    """Excess of each generalised eigenvalue over the noise band, in noise standard deviations.
+
+    The band sits at mu = 1 when the noise model is right; a larger smallest eigenvalue
+    (model error) raises it, a smaller one (noise overestimated, e.g. the resolution floor
+    on exact data) does not lower it.
+    """
+    mu = np.asarray(mu, dtype=float)
+    reference = max(float(mu[0]), 1.0)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        gaps = (mu / reference - 1.0) * math.sqrt(n_eff / 2.0)
     gaps = np.where(np.isfinite(gaps), gaps, np.inf)
     gaps[0] = 0.0
-    return int(np.count_nonzero(gaps < GAP_THRESHOLD)), gaps, n_eff
+    return gaps
 
 
 def _resolved(taus: tuple[float, ...], poly: tuple[float, ...]) -> tuple[tuple[float, ...], str]:
@@ -268,6 +284,176 @@ def _beta(taus: tuple[tuple[float, ...], tuple[float, ...]], ts: float) -> float
     return b2 / b1
 
 
+@dataclass
+class _SvfRun:
+    """One SVF characterisation: the data, the settings and the growing details."""
+
+    t1: np.ndarray
+    t2: np.ndarray
+    ts: float
+    order: int
+    hysteresis: bool
+    sigma: tuple[float, float]
+    static: str
+    details: dict[str, object]
+    tf: float = float("nan")
+
+    def fit(self, order: int, static: str, hysteresis: bool) -> svf.SvfResult | None:
+        kwargs: dict[str, Any] = {"tf": self.tf, "order": order, "sigma1": self.sigma[0],
+                                  "sigma2": self.sigma[1], "static": static}
+        if hysteresis:
+            kwargs.update(hysteresis=True, direction_tolerance=DIRECTION_TOLERANCE)
+        return _safe_estimate(self.t1, self.t2, self.ts, **kwargs)
+
+    def failed(self, status: str, message: str,
+               identifiability: dict[str, object] | None = None) -> PairEstimate:
+        self.details["message"] = message
+        return PairEstimate(
+            status=status, method="svf", order=self.order, sample_interval=self.ts,
+            time_constants=(tuple(float("nan") for _ in range(self.order)),) * 2, beta=None,
+            noise_std=self.sigma, identifiability=identifiability or {}, details=self.details,
+        )
+
+    def run(self, tf: float | None) -> PairEstimate:
+        if tf is None:
+            scan_static = "unit" if self.static == "unit" else "affine"
+            tf, history = choose_filter_time_constant(
+                self.t1, self.t2, self.ts, self.order, self.sigma, scan_static)
+            self.details["filter_time_constant_history"] = history
+            self.details["filter_time_constant_source"] = "auto"
+        else:
+            self.details["filter_time_constant_source"] = "given"
+        self.tf = tf
+        self.details["filter_time_constant"] = tf
+        res, static = self.select_static()
+        if res is None:
+            need = "a heating and a cooling episode of each sensor" if self.hysteresis else \
+                "temperature changes"
+            return self.failed("insufficient_excitation",
+                               f"the signals do not excite the model (need {need})")
+        n_eff = _effective_samples(res, self.ts, self.sigma, static)
+        gaps = _gap_statistics(res.eigenvalues, n_eff)
+        k = int(np.count_nonzero(gaps < GAP_THRESHOLD))
+        mu = np.asarray(res.eigenvalues, dtype=float)
+        self.details.update(
+            static_model=static, rows=res.rows, theta=res.theta.tolist(),
+            eigenvalues=mu.tolist(), effective_samples=n_eff, gap_statistics=gaps.tolist(),
+            residual_to_noise=float(mu[0]),
+        )
+        if static == "affine":
+            self.details.update(gain_ratio=res.extra["gain_ratio"], offset=res.extra["offset"])
+        if self.hysteresis:
+            self.details["direction_half_windows"] = list(
+                res.extra["direction_half_windows"])  # type: ignore[call-overload]
+        identifiability: dict[str, object] = {
+            "identifiable": k == 1,
+            "null_dimension": k,
+            "eigenvalue_ratio": float(mu[1] / mu[0]) if mu[0] > 0.0 else float("inf"),
+            "gap_statistic": float(gaps[1]),
+        }
+        misfit = (float(mu[0]) - 1.0) * math.sqrt(n_eff / 2.0)
+        if misfit > GAP_THRESHOLD:
+            identifiability["model_misfit"] = (
+                f"the model leaves {float(mu[0]):.3g} times the residual that sensor noise "
+                "explains: the sensors may be of higher order, hysteretic, nonlinear or see "
+                "different gas temperatures")
+        if k > 1:
+            return self.reduced(res, static, k, identifiability)
+        return self.finish(res, self.order, identifiability)
+
+    def select_static(self) -> tuple[svf.SvfResult | None, str]:
+        """Fit the unit-gain model and, for "auto", the affine one; keep the affine model only
+        when it explains significantly more (gain or offset mismatch between the sensors)."""
+        if self.static != "auto":
+            return self.fit(self.order, self.static, self.hysteresis), self.static
+        unit = self.fit(self.order, "unit", self.hysteresis)
+        affine = self.fit(self.order, "affine", self.hysteresis)
+        if affine is None:
+            return unit, "unit"
+        if unit is None:
+            return affine, "affine"
+        n_eff = _effective_samples(unit, self.ts, self.sigma, "unit")
+        gain = (float(unit.eigenvalues[0]) / max(float(affine.eigenvalues[0]), 1.0) - 1.0)
+        statistic = gain * math.sqrt(n_eff / 2.0)
+        self.details["static_model_statistic"] = statistic
+        return (affine, "affine") if statistic > GAP_THRESHOLD else (unit, "unit")
+
+    def finish(self, res: svf.SvfResult, order: int,
+               identifiability: dict[str, object]) -> PairEstimate:
+        if "heat" in res.extra:
+            heat = res.extra["heat"]
+            cool = res.extra["cool"]
+            values = [heat[0][0], cool[0][0], heat[1][0], cool[1][0]]  # type: ignore[index]
+            if res.status != "ok" or not all(math.isfinite(v) and v > 0.0 for v in values):
+                return self.failed("infeasible", "no positive heating/cooling time constants "
+                                   "fit these signals", identifiability)
+            return PairEstimate(
+                status="ok", method="svf", order=1, sample_interval=self.ts,
+                time_constants=res.time_constants, beta=_beta(res.time_constants, self.ts),
+                noise_std=self.sigma, time_constants_heat=heat,  # type: ignore[arg-type]
+                time_constants_cool=cool,  # type: ignore[arg-type]
+                identifiability=identifiability, details=self.details,
+            )
+        notes = []
+        taus = []
+        for i in range(2):
+            t, note = _resolved(res.time_constants[i], res.polynomials[i])
+            if note == "no positive real time constants":
+                return self.failed("infeasible", f"sensor {i + 1}: {note} fit these signals "
+                                   "(check the columns)", identifiability)
+            if note:
+                notes.append(f"sensor {i + 1}: {note}")
+            taus.append(t)
+        if notes:
+            identifiability["notes"] = notes
+        tcs = (tuple(taus[0]), tuple(taus[1]))
+        return PairEstimate(
+            status="ok", method="svf", order=order, sample_interval=self.ts,
+            time_constants=tcs, beta=_beta(tcs, self.ts), noise_std=self.sigma,
+            identifiability=identifiability, details=self.details,
+        )
+
+    def reduced(self, res: svf.SvfResult, static: str, k: int,
+                identifiability: dict[str, object]) -> PairEstimate:
+        """k-dimensional near-null space: report what the data do determine."""
+        if self.hysteresis:
+            message = ("heating and cooling time constants are not separately identifiable "
+                       "from these signals (too few or too weak heating/cooling episodes); the "
+                       "common time constants are reported")
+            identifiability["message"] = message
+            common = self.fit(1, static, False)
+            if common is None or common.status != "ok":
+                return self.failed("insufficient_excitation", message, identifiability)
+            return self.finish(common, 1, identifiability)
+        reduced_order = self.order - (k - 1)
+        if reduced_order < 1:
+            message = ("the time constants are not identifiable: within the noise the two "
+                       "signals are explained by identical sensors or by no excitation (record "
+                       "larger temperature changes; check that the two sensors differ)")
+            identifiability["message"] = message
+            return self.failed("insufficient_excitation", message, identifiability)
+        low = self.fit(reduced_order, static, False)
+        if low is None or low.status != "ok":
+            message = "the time constants are not identifiable from these signals"
+            identifiability["message"] = message
+            return self.failed("insufficient_excitation", message, identifiability)
+        shared = "a pole" if k == 2 else f"{k - 1} poles"
+        identifiability.update(
+            shared_pole=None,
+            shared_poles=k - 1,
+            distinct_time_constants=[list(low.time_constants[0]), list(low.time_constants[1])],
+            message=(
+                f"the two sensors (nearly) share {shared} (gap statistic "
+                f"{float(identifiability['gap_statistic']):.3g} < {GAP_THRESHOLD:g}): a pole "
+                "common to both acts like a filter on the gas temperature and cannot be seen "
+                "from the two signals; only the distinct time constants are identifiable and "
+                f"reported (order {reduced_order})"
+            ),
+        )
+        self.details["requested_order"] = self.order
+        return self.finish(low, reduced_order, identifiability)
+
+
 def _svf_estimate(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -277,153 +463,18 @@ def _svf_estimate(
     sigma: tuple[float, float],
     sigma_source: str,
     tf: float | None,
-    method: str,
+    static: str,
 ) -> PairEstimate:
     details: dict[str, object] = {"noise_std_source": sigma_source}
-    if tf is None:
-        tf, history = choose_filter_time_constant(t1, t2, ts, order, sigma)
-        details["filter_time_constant_history"] = history
-        details["filter_time_constant_source"] = "auto"
-    else:
-        details["filter_time_constant_source"] = "given"
-    details["filter_time_constant"] = tf
-    window = max(1, round(tf / ts))
-    kwargs: dict[str, Any] = {"tf": tf, "sigma1": sigma[0], "sigma2": sigma[1]}
-    if hysteresis:
-        kwargs.update(hysteresis=True, direction_half_window=window,
-                      dead_zone=svf.DIRECTION_DEAD_ZONE)
-        details["direction_half_window"] = window
-    nan_taus = (tuple(float("nan") for _ in range(order)),) * 2
-
-    def failed(status: str, message: str, identifiability: dict[str, object] | None = None
-               ) -> PairEstimate:
-        details["message"] = message
-        return PairEstimate(
-            status=status, method=method, order=order, sample_interval=ts,
-            time_constants=nan_taus, beta=None, noise_std=sigma,
-            identifiability=identifiability or {}, details=details,
-        )
-
-    res = _safe_estimate(t1, t2, ts, order=order, **kwargs)
-    if res is None:
-        what = "a heating or a cooling episode of each sensor" if hysteresis else "changes"
-        return failed("insufficient_excitation",
-                      f"the signals do not excite the model (need {what})")
-    k, gaps, n_eff = _null_dimension(res, ts, order, sigma, hysteresis)
-    details.update(
-        rows=res.rows, theta=res.theta.tolist(), eigenvalues=np.asarray(res.eigenvalues).tolist(),
-        effective_samples=n_eff, gap_statistics=gaps.tolist(),
-    )
-    identifiability: dict[str, object] = {
-        "identifiable": k == 1, "null_dimension": k,
-        "eigenvalue_ratio": float(res.eigenvalues[1] / res.eigenvalues[0])
-        if res.eigenvalues[0] > 0 else float("inf"),
-        "gap_statistic": float(gaps[1]),
-    }
-    if k > 1:
-        return _reduced(t1, t2, ts, order, hysteresis, sigma, method, res, k, kwargs,
-                        identifiability, details, failed)
-    return _finish(res, ts, order, hysteresis, sigma, method, identifiability, details, failed)
-
-
-def _finish(
-    res: svf.SvfResult,
-    ts: float,
-    order: int,
-    hysteresis: bool,
-    sigma: tuple[float, float],
-    method: str,
-    identifiability: dict[str, object],
-    details: dict[str, object],
-    failed: Any,
-) -> PairEstimate:
-    if hysteresis:
-        heat = res.extra["heat"]
-        cool = res.extra["cool"]
-        values = [heat[0][0], cool[0][0], heat[1][0], cool[1][0]]
-        if not all(math.isfinite(v) and v > 0.0 for v in values):
-            return failed("infeasible", "no positive heating/cooling time constants fit these "
-                          "signals", identifiability)
-        return PairEstimate(
-            status="ok", method=method, order=1, sample_interval=ts,
-            time_constants=res.time_constants, beta=_beta(res.time_constants, ts),
-            noise_std=sigma, time_constants_heat=heat, time_constants_cool=cool,  # type: ignore[arg-type]
-            identifiability=identifiability, details=details,
-        )
-    notes = []
-    taus = []
-    for i in range(2):
-        t, note = _resolved(res.time_constants[i], res.polynomials[i])
-        if note == "no positive real time constants":
-            return failed("infeasible", f"sensor {i + 1}: {note} fit these signals (check the "
-                          "columns)", identifiability)
-        if note:
-            notes.append(f"sensor {i + 1}: {note}")
-        taus.append(t)
-    if notes:
-        identifiability["notes"] = notes
-    tcs = (tuple(taus[0]), tuple(taus[1]))
-    return PairEstimate(
-        status="ok", method=method, order=order, sample_interval=ts, time_constants=tcs,
-        beta=_beta(tcs, ts), noise_std=sigma, identifiability=identifiability, details=details,
-    )
-
-
-def _reduced(
-    t1: np.ndarray,
-    t2: np.ndarray,
-    ts: float,
-    order: int,
-    hysteresis: bool,
-    sigma: tuple[float, float],
-    method: str,
-    res: svf.SvfResult,
-    k: int,
-    kwargs: dict[str, Any],
-    identifiability: dict[str, object],
-    details: dict[str, object],
-    failed: Any,
-) -> PairEstimate:
-    """k-dimensional near-null space: report what the data do determine."""
-    if hysteresis:
-        common = _safe_estimate(t1, t2, ts, order=1, tf=kwargs["tf"], sigma1=sigma[0],
-                                sigma2=sigma[1])
-        identifiability["message"] = (
-            "heating and cooling time constants are not separately identifiable from these "
-            "signals (too few or too weak heating/cooling episodes); the common time "
-            "constants are reported")
-        if common is None or common.status != "ok":
-            return failed("insufficient_excitation", str(identifiability["message"]),
-                          identifiability)
-        return _finish(common, ts, 1, False, sigma, method, identifiability, details, failed)
-    reduced_order = order - (k - 1)
-    if reduced_order < 1:
-        message = ("the time constants are not identifiable: within the noise the two signals "
-                   "are explained by identical sensors or by no excitation (record larger "
-                   "temperature changes; check that the two sensors differ)")
-        identifiability["message"] = message
-        return failed("insufficient_excitation", message, identifiability)
-    low = _safe_estimate(t1, t2, ts, order=reduced_order, tf=kwargs["tf"], sigma1=sigma[0],
-                         sigma2=sigma[1])
-    if low is None or low.status != "ok":
-        message = "the time constants are not identifiable from these signals"
-        identifiability["message"] = message
-        return failed("insufficient_excitation", message, identifiability)
-    identifiability.update(
-        shared_pole=None,
-        shared_order=k - 1,
-        distinct_time_constants=[list(low.time_constants[0]), list(low.time_constants[1])],
-        message=(
-            f"the two sensors (nearly) share {k - 1} pole(s) (gap statistic "
-            f"{float(identifiability['gap_statistic']):.3g} < {GAP_THRESHOLD:g}): a common "
-            "pole acts like a filter on the gas temperature and cannot be seen from the two "
-            "signals, so only the distinct time constants are reported (order "
-            f"{reduced_order})"
-        ),
-    )
-    details["requested_order"] = order
-    out = _finish(low, ts, reduced_order, False, sigma, method, identifiability, details, failed)
-    return out
+    # Resolution floor: nothing below a part per million of a signal's variation is resolved
+    # (FOH interpolation and rounding errors of exact data sit there), so noise-free records
+    # keep a meaningful noise band for the identifiability test.
+    floor = (RESOLUTION_FLOOR * float(np.std(t1)), RESOLUTION_FLOOR * float(np.std(t2)))
+    used = (max(sigma[0], floor[0]), max(sigma[1], floor[1]))
+    if used != sigma:
+        details["noise_std_used"] = used
+    result = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details).run(tf)
+    return dataclasses.replace(result, noise_std=sigma)
 
 
 # --------------------------------------------------------------------------------------------
@@ -477,6 +528,7 @@ def characterise_pair(
     hysteresis: bool = False,
     noise_std: float | Sequence[float] | None = None,
     filter_time_constant: float | None = None,
+    static_model: str = "auto",
 ) -> PairEstimate:
     """Identify the two sensors' time constants from their signals alone.
 
@@ -484,7 +536,10 @@ def characterise_pair(
     time constant chosen from the data) or ls | tls | gtls (the paper's difference method,
     first order only). ``noise_std``: white-noise standard deviation, one value or one per
     sensor; estimated from the signals when None. ``filter_time_constant``: the SVF's tf in
-    seconds (None: automatic). Raises ValueError (dualprobe.io.InputError) for bad arguments;
+    seconds (None: automatic). ``static_model`` (SVF): "unit" (both sensors of unit static
+    gain, design.md 1.4), "affine" (a gain ratio and an offset between the sensors are
+    estimated too; reported in ``details``) or "auto" (affine only when it fits significantly
+    better). Raises ValueError (dualprobe.io.InputError) for bad arguments;
     estimation failures are reported in ``status`` with ``details["message"]``.
     """
     a, b, ts = _check_inputs(t1, t2, ts, method, order, hysteresis)
@@ -503,7 +558,11 @@ def characterise_pair(
         )
     if method in ("ls", "tls", "gtls"):
         return _difference_estimate(a, b, ts, method, sigma, source)
-    return _svf_estimate(a, b, ts, order, hysteresis, sigma, source, filter_time_constant, "svf")
+    if static_model not in ("auto", *svf.STATIC_MODELS):
+        raise _input_error()(f"characterise_pair: static_model must be auto, unit or affine, "
+                             f"got {static_model!r}")
+    return _svf_estimate(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
+                         static_model)
 
 
 # --------------------------------------------------------------------------------------------

@@ -5,17 +5,23 @@
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg
 import scipy.signal
+import scipy.special
 
 __all__ = [
     "DIRECTION_DEAD_ZONE",
+    "DIRECTION_TOLERANCE",
+    "STATIC_MODELS",
     "FilterDiscretisation",
     "SvfResult",
+    "choose_direction_half_window",
+    "column_maps",
     "direction_indicator",
     "discretise_filter",
     "effective_samples",
@@ -23,15 +29,19 @@ __all__ = [
     "filter_states",
     "filtered_derivatives",
     "free_response",
+    "merged_theta",
     "noise_covariance",
     "polynomial_time_constants",
     "projected_scatter",
     "regression_columns",
+    "residual_effective_samples",
     "solve_gtls",
 ]
 
 
 DIRECTION_DEAD_ZONE = 2.0  # |slope| below 2 noise std: direction undecided (h = 1/2)
+DIRECTION_TOLERANCE = 0.01  # slope-noise std / RMS filtered slope for the direction window
+STATIC_MODELS = ("unit", "affine")
 
 
 @dataclass(frozen=True)
@@ -55,6 +65,7 @@ class FilterDiscretisation:
     state_covariance: np.ndarray
 
 
+@functools.lru_cache(maxsize=64)
 def discretise_filter(tf: float, ts: float, m: int, hold: str = "foh") -> FilterDiscretisation:
     """Exact FOH (or ZOH) discretisation of the m-fold lag cascade with time constant ``tf``."""
     if not (math.isfinite(tf) and tf > 0.0 and math.isfinite(ts) and ts > 0.0):
@@ -63,23 +74,23 @@ def discretise_filter(tf: float, ts: float, m: int, hold: str = "foh") -> Filter
         raise ValueError(f"discretise_filter: need m >= 1, got {m}")
     if hold not in ("foh", "zoh"):
         raise ValueError(f"discretise_filter: hold must be 'foh' or 'zoh', got {hold!r}")
-    a_cont = (np.eye(m, k=-1) - np.eye(m)) / tf
-    b_cont = np.zeros(m)
-    b_cont[0] = 1.0 / tf
-    # expm([[A Ts, B Ts, 0], [0, 0, 1], [0, 0, 0]]) = [[Phi, Gamma0, Gamma1/Ts], ...]
-    aug = np.zeros((m + 2, m + 2))
-    aug[:m, :m] = a_cont * ts
-    aug[:m, m] = b_cont * ts
-    aug[m, m + 1] = 1.0
-    ex = scipy.linalg.expm(aug)
-    phi = ex[:m, :m]
-    gamma0 = ex[:m, m]
-    gamma1 = ex[:m, m + 1]
+    h = ts / tf
+    # Closed form of the exact discretisation of the cascade (A = (N - I)/tf, B = e_0/tf,
+    # N the down-shift): phi[j, i] = exp(-h) h^(j-i)/(j-i)!, Gamma0_j = P(j+1, h) and
+    # (1/Ts) int_0^Ts exp(A r) B r dr = (j+1) P(j+2, h) / h, with P the regularised lower
+    # incomplete gamma function (accurate for tiny h, no cancellation).
+    phi = np.zeros((m, m))
+    for j in range(m):
+        for i in range(j + 1):
+            phi[j, i] = math.exp(-h) * h ** (j - i) / math.factorial(j - i)
+    j = np.arange(m)
+    gamma0 = scipy.special.gammainc(j + 1.0, h)
+    ramp = (j + 1.0) * scipy.special.gammainc(j + 2.0, h) / h
     if hold == "foh":
-        ga = gamma0 - gamma1
-        gb = gamma1.copy()
+        ga = ramp
+        gb = gamma0 - ramp
     else:
-        ga = gamma0.copy()
+        ga = gamma0
         gb = np.zeros(m)
     # (tf s) v_i = v_{i-1} - v_i: the j-th scaled derivative of v_{m-1} is a binomial
     # difference of the last j+1 cascade states.
@@ -92,6 +103,8 @@ def discretise_filter(tf: float, ts: float, m: int, hold: str = "foh") -> Filter
     p_w = scipy.linalg.solve_discrete_lyapunov(phi, np.outer(q, q))
     cov = p_w + np.outer(gb, gb)
     cov = 0.5 * (cov + cov.T)
+    for array in (phi, ga, gb, lmap, cov):
+        array.setflags(write=False)  # shared through the cache
     return FilterDiscretisation(
         tf=float(tf), ts=float(ts), m=m, hold=hold, phi=phi, ga=ga, gb=gb,
         derivative_map=lmap, state_covariance=cov,
@@ -182,34 +195,84 @@ def direction_indicator(
     return h
 
 
+def choose_direction_half_window(
+    x: np.ndarray, disc: FilterDiscretisation, sigma: float, tolerance: float = 0.01
+) -> int:
+    """Half window w of :func:`direction_indicator` for one signal.
+
+    The smallest w whose slope-noise standard deviation ``sigma sqrt(2/w) / ((w+1) Ts)`` is
+    at most ``tolerance`` times the RMS filtered slope ``(sF x)`` of the record, capped at
+    tf/Ts: short windows keep direction changes sharp at steps, long ones keep slow
+    episodes from being classified by noise.
+    """
+    w_max = max(1, round(disc.tf / disc.ts))
+    if sigma <= 0.0:
+        return 1
+    slope = filtered_derivatives(x, disc)[1] / disc.tf
+    scale = float(np.sqrt(np.mean(slope * slope)))
+    if not scale > 0.0:
+        return w_max
+    w = np.arange(1, w_max + 1, dtype=float)
+    ok = sigma * np.sqrt(2.0 / w) / ((w + 1.0) * disc.ts) <= tolerance * scale
+    return int(w[ok][0]) if np.any(ok) else w_max
+
+
+def column_maps(order: int, static: str = "unit") -> tuple[np.ndarray, np.ndarray]:
+    """Maps (p, order+1) of the unsplit layout: ``z = M1 x(T1) + M2 x(T2)``, with
+    ``x_j = (tf s)^j F T`` (j = 0..order).
+
+    unit:   ``[x_1..x_n(T1), -x_1..x_n(T2), x_0(T2) - x_0(T1)]``  (design.md 1.4)
+    affine: ``[x_1..x_n(T1), -x_1..x_n(T2), -x_0(T2), -x_0(T1)]``, constant projected out
+    """
+    if static not in STATIC_MODELS:
+        raise ValueError(f"static model must be one of {', '.join(STATIC_MODELS)}, got {static!r}")
+    p = 2 * order + (1 if static == "unit" else 2)
+    m1 = np.zeros((p, order + 1))
+    m2 = np.zeros((p, order + 1))
+    for j in range(1, order + 1):
+        m1[j - 1, j] = 1.0
+        m2[order + j - 1, j] = -1.0
+    if static == "unit":
+        m1[-1, 0] = -1.0
+        m2[-1, 0] = 1.0
+    else:
+        m2[-2, 0] = -1.0
+        m1[-1, 0] = -1.0
+    return m1, m2
+
+
 def regression_columns(
     t1: np.ndarray,
     t2: np.ndarray,
     disc: FilterDiscretisation,
     order: int,
     directions: tuple[np.ndarray, np.ndarray] | None = None,
+    static: str = "unit",
 ) -> np.ndarray:
-    """Regression columns (p, N): row i of the result is column i of z(k), design.md 1.4
-    order, scaled (derivative columns are ``(tf s)^j F T``)."""
-    x1 = filtered_derivatives(t1, disc)
-    x2 = filtered_derivatives(t2, disc)
-    n = x1.shape[1]
+    """Regression columns (p, N): row i of the result is column i of z(k) (scaled: derivative
+    columns are ``(tf s)^j F T``), in the order of :func:`column_maps`. With ``directions``
+    (order 1) each sensor's derivative column is split into a heating and a cooling column
+    ``(tf s) F`` applied (ZOH) to ``h ΔT/Ts`` and ``(1 - h) ΔT/Ts``."""
+    x1 = filtered_derivatives(t1, disc)[: order + 1]
+    x2 = filtered_derivatives(t2, disc)[: order + 1]
+    m1, m2 = column_maps(order, static)
+    z = np.zeros((m1.shape[0], x1.shape[1]))
+    for mat, x in ((m1, x1), (m2, x2)):
+        for row, col in zip(*np.nonzero(mat), strict=True):
+            z[row] += mat[row, col] * x[col]
     if directions is None:
-        cols = [x1[j] for j in range(1, order + 1)]
-        cols += [-x2[j] for j in range(1, order + 1)]
-        cols.append(x2[0] - x1[0])
-        return np.array(cols)
+        return z
     if order != 1:
         raise ValueError("regression_columns: the hysteresis split is defined for order 1 only")
+    n = x1.shape[1]
     zoh = _zoh_of(disc)
-    cols = []
+    split = []
     for sign, x, h in ((1.0, t1, directions[0]), (-1.0, t2, directions[1])):
         slope = np.diff(np.asarray(x, dtype=float)) * (disc.tf / disc.ts)
         heat = _last_state(slope * h, zoh, n)
         cool = _last_state(slope * (1.0 - h), zoh, n)
-        cols += [sign * heat, sign * cool]
-    cols.append(x2[0] - x1[0])
-    return np.array(cols)
+        split += [sign * heat, sign * cool]
+    return np.vstack([np.array(split), z[2:]])
 
 
 def _zoh_of(disc: FilterDiscretisation) -> FilterDiscretisation:
@@ -234,36 +297,39 @@ def free_response(disc: FilterDiscretisation, n: int) -> np.ndarray:
     return np.array([r**j / math.factorial(j) * decay for j in range(disc.m)])
 
 
-def projected_scatter(cols: np.ndarray, disc: FilterDiscretisation, start: int = 0) -> np.ndarray:
+def projected_scatter(
+    cols: np.ndarray, disc: FilterDiscretisation, start: int = 0, constant: bool = False
+) -> np.ndarray:
     """Scatter of the columns from sample ``start`` on, with the start-up transients (the span
-    of the free responses) projected out."""
+    of the free responses) and, if ``constant``, a constant projected out."""
     z = cols[:, start:]
     scatter = z @ z.T
     h = free_response(disc, cols.shape[1])[:, start:]
     k = h.shape[1]
-    if k == 0:
+    if constant:
+        basis = np.zeros((h.shape[0] + 1, z.shape[1]))
+        basis[:-1, :k] = h
+        basis[-1] = 1.0
+        zh = z @ basis.T
+    elif k:
+        basis = h
+        zh = z[:, :k] @ h.T
+    else:
         return scatter
-    zh = z[:, :k] @ h.T
-    hh = h @ h.T
+    hh = basis @ basis.T
     scatter -= zh @ np.linalg.solve(hh, zh.T)
     return 0.5 * (scatter + scatter.T)
 
 
 def noise_covariance(
-    disc: FilterDiscretisation, order: int, sigma1: float, sigma2: float
+    disc: FilterDiscretisation, order: int, sigma1: float, sigma2: float, static: str = "unit"
 ) -> np.ndarray:
-    """Stationary covariance of the noise part of z under white noise sigma1, sigma2."""
-    lmap = disc.derivative_map
-    cov_x = lmap @ disc.state_covariance @ lmap.T  # covariance of x_0..x_{m-1}
-    p = 2 * order + 1
-    # z = M1 x(T1) + M2 x(T2)
-    m1 = np.zeros((p, disc.m))
-    m2 = np.zeros((p, disc.m))
-    for j in range(1, order + 1):
-        m1[j - 1, j] = 1.0
-        m2[order + j - 1, j] = -1.0
-    m1[-1, 0] = -1.0
-    m2[-1, 0] = 1.0
+    """Stationary covariance of the noise part of z (unsplit layout) under white noise
+    sigma1, sigma2: ``sum_i sigma_i^2 M_i L P L^T M_i^T`` with P the filter's state
+    covariance (discrete Lyapunov) and L the derivative map."""
+    lmap = disc.derivative_map[: order + 1]
+    cov_x = lmap @ disc.state_covariance @ lmap.T  # covariance of x_0..x_order
+    m1, m2 = column_maps(order, static)
     c = sigma1**2 * (m1 @ cov_x @ m1.T) + sigma2**2 * (m2 @ cov_x @ m2.T)
     return 0.5 * (c + c.T)
 
@@ -294,21 +360,16 @@ def effective_samples(
     sigma1: float,
     sigma2: float,
     rows: int,
+    static: str = "unit",
 ) -> float:
-    """Effective number of independent rows for the equation error ``theta . z_noise``.
+    """Effective number of independent rows for the equation error ``theta . z_noise``
+    (unsplit layout).
 
     The filtered noise is correlated over ~tf, so a sample second moment over ``rows`` rows
     scatters like one over ``rows * R(0)^2 / sum_l R(l)^2`` independent rows (R: the
-    autocovariance of the equation error, computed from the filter's impulse response).
+    autocovariance of the equation error, from the filter's impulse response).
     """
-    p = 2 * order + 1
-    m1 = np.zeros((p, disc.m))
-    m2 = np.zeros((p, disc.m))
-    for j in range(1, order + 1):
-        m1[j - 1, j] = 1.0
-        m2[order + j - 1, j] = -1.0
-    m1[-1, 0] = -1.0
-    m2[-1, 0] = 1.0
+    m1, m2 = column_maps(order, static)
     length = min(math.ceil((40.0 + 4.0 * disc.m) * disc.tf / disc.ts) + 2, 4 * rows + 2)
     impulse = np.zeros(length)
     impulse[0] = 1.0
@@ -317,7 +378,7 @@ def effective_samples(
     for weight, mat in ((sigma1, m1), (sigma2, m2)):
         if weight == 0.0:
             continue
-        c = (theta[:p] @ mat) @ disc.derivative_map  # e = c . v
+        c = (theta @ mat) @ disc.derivative_map[: order + 1]  # e = c . v
         h = c @ states
         acov += weight**2 * scipy.signal.fftconvolve(h, h[::-1])
     r0 = acov[length - 1]
@@ -325,6 +386,23 @@ def effective_samples(
     if not (r0 > 0.0 and total > 0.0):
         return float(rows)
     return float(rows) * r0**2 / total
+
+
+def residual_effective_samples(cols: np.ndarray, theta: np.ndarray, max_lag: int) -> float:
+    """Effective number of independent rows from the empirical autocovariance (lags up to
+    ``max_lag``) of the equation error ``theta . z`` itself: conservative when the residual
+    holds more than white sensor noise (model error, coloured noise)."""
+    e = theta @ cols
+    e = e - np.mean(e)
+    n = e.size
+    lag = int(min(max_lag, n - 1))
+    nfft = 1 << math.ceil(math.log2(n + lag + 1))
+    spec = np.fft.rfft(e, nfft)
+    acov = np.fft.irfft(spec * np.conj(spec), nfft)[: lag + 1] / n
+    total = acov[0] ** 2 + 2.0 * float(np.sum(acov[1:] ** 2))
+    if not (acov[0] > 0.0 and total > 0.0):
+        return float(n)
+    return float(n) * float(acov[0]) ** 2 / total
 
 
 def polynomial_time_constants(coeffs: tuple[float, ...]) -> tuple[float, ...]:
@@ -348,6 +426,7 @@ def estimate(
     order: int = 1,
     sigma1: float = 0.0,
     sigma2: float = 0.0,
+    static: str = "unit",
     m: int | None = None,
     hold: str = "foh",
     warmup: int = 0,
@@ -355,59 +434,90 @@ def estimate(
     direction_half_window: int | None = None,
     project_initial: bool = True,
     dead_zone: float = DIRECTION_DEAD_ZONE,
+    direction_tolerance: float = DIRECTION_TOLERANCE,
+    diagnostics: bool = True,
 ) -> SvfResult:
-    """SVF cross-relation estimate with a fixed filter time constant ``tf``."""
+    """SVF cross-relation estimate with a fixed filter time constant ``tf`` (batch).
+
+    Raises numpy.linalg.LinAlgError when a regression column is identically zero (no
+    excitation at all). ``status`` is "infeasible" when the time constants are not all
+    real and positive (``time_constants`` then hold NaN; ``polynomials`` keep the fit).
+    """
     t1 = np.asarray(t1, dtype=float)
     t2 = np.asarray(t2, dtype=float)
     m = order + 1 if m is None else m
     disc = discretise_filter(tf, ts, m, hold)
     directions = None
+    windows = (0, 0)
     if hysteresis:
-        w = direction_half_window
-        if w is None:
-            w = max(1, round(tf / ts))
+        if order != 1:
+            raise ValueError("estimate: the hysteresis split is defined for order 1 only")
+        if direction_half_window is None:
+            windows = (
+                choose_direction_half_window(t1, disc, sigma1, direction_tolerance),
+                choose_direction_half_window(t2, disc, sigma2, direction_tolerance),
+            )
+        else:
+            windows = (direction_half_window, direction_half_window)
         directions = (
-            direction_indicator(t1, w, sigma1, dead_zone),
-            direction_indicator(t2, w, sigma2, dead_zone),
+            direction_indicator(t1, windows[0], sigma1, dead_zone),
+            direction_indicator(t2, windows[1], sigma2, dead_zone),
         )
-    cols = regression_columns(t1, t2, disc, order, directions)
+    cols = regression_columns(t1, t2, disc, order, directions, static)
     rows = cols.shape[1] - warmup
-    if project_initial:
-        scatter = projected_scatter(cols, disc, warmup)
+    constant = static == "affine"
+    if project_initial or constant:
+        scatter = projected_scatter(cols, disc, warmup, constant)
     else:
         scatter = cols[:, warmup:] @ cols[:, warmup:].T
-    cov = noise_covariance(disc, order, sigma1, sigma2)
-    if hysteresis and directions is not None:
-        cov = _hysteresis_covariance(cov, directions, warmup)
+    cov = noise_covariance(disc, order, sigma1, sigma2, static)
+    if directions is not None:
+        cov = _split_covariance(cov, directions, warmup)
     else:
         cov = cov * rows
     theta, mu, _ = solve_gtls(scatter, cov)
-    scale = np.array([disc.tf ** (j + 1) for j in range(order)])
+    n_eff_residual = float("nan")
+    if diagnostics:
+        lag = math.ceil((20.0 + 4.0 * m) * tf / ts)
+        n_eff_residual = residual_effective_samples(cols[:, warmup:], theta, lag)
+    extra: dict[str, object] = {"residual_effective_samples": n_eff_residual}
+    n_dyn = 4 if hysteresis else 2 * order
+    gain = float(theta[n_dyn]) if constant else 1.0
+    extra["gain_ratio"] = gain
+    if constant:
+        extra["offset"] = float(np.mean(theta @ cols[:, warmup:]))
     if hysteresis:
-        taus = theta[:4] * disc.tf
+        taus = theta[:4] * disc.tf / np.array([1.0, 1.0, gain, gain])
         heat = ((float(taus[0]),), (float(taus[2]),))
         cool = ((float(taus[1]),), (float(taus[3]),))
-        ok = bool(np.all(taus > 0.0))
+        ok = bool(np.all(taus > 0.0)) and gain > 0.0
+        extra.update(heat=heat, cool=cool, direction_half_windows=windows)
+        mean = ((0.5 * float(taus[0] + taus[1]),), (0.5 * float(taus[2] + taus[3]),))
         return SvfResult(
-            status="ok" if ok else "infeasible", order=1, theta=theta,
-            time_constants=(((taus[0] + taus[1]) / 2,), ((taus[2] + taus[3]) / 2,)),
-            polynomials=heat, eigenvalues=mu, rows=rows, tf=tf, warmup=warmup,
-            extra={"heat": heat, "cool": cool},
+            status="ok" if ok else "infeasible", order=1, theta=theta, time_constants=mean,
+            polynomials=mean, eigenvalues=mu, rows=rows, tf=tf, warmup=warmup, extra=extra,
         )
+    scale = np.array([disc.tf ** (j + 1) for j in range(order)])
     p1 = tuple(float(v) for v in theta[:order] * scale)
-    p2 = tuple(float(v) for v in theta[order : 2 * order] * scale)
+    p2 = tuple(float(v) for v in theta[order : 2 * order] * scale / gain)
     tc1 = polynomial_time_constants(p1)
     tc2 = polynomial_time_constants(p2)
-    ok = all(math.isfinite(v) for v in tc1 + tc2)
+    ok = all(math.isfinite(v) for v in tc1 + tc2) and gain > 0.0
     return SvfResult(
         status="ok" if ok else "infeasible", order=order, theta=theta,
         time_constants=(tc1, tc2), polynomials=(p1, p2), eigenvalues=mu, rows=rows,
-        tf=tf, warmup=warmup,
+        tf=tf, warmup=warmup, extra=extra,
     )
 
 
-def _hysteresis_covariance(
-    cov3: np.ndarray, directions: tuple[np.ndarray, np.ndarray], warmup: int
+def merged_theta(theta: np.ndarray) -> np.ndarray:
+    """Unsplit parameter vector of a hysteresis fit (heating/cooling averaged)."""
+    return np.concatenate(([0.5 * (theta[0] + theta[1]), 0.5 * (theta[2] + theta[3])],
+                           theta[4:]))
+
+
+def _split_covariance(
+    cov: np.ndarray, directions: tuple[np.ndarray, np.ndarray], warmup: int
 ) -> np.ndarray:
     """Accumulated noise covariance of the split rows: each row's derivative noise is
     attributed to the heating/cooling columns with the weights (h, 1 - h) of its current
@@ -415,12 +525,14 @@ def _hysteresis_covariance(
     h1 = directions[0][max(warmup - 1, 0):]
     h2 = directions[1][max(warmup - 1, 0):]
     pairs, counts = np.unique(np.column_stack((h1, h2)), axis=0, return_counts=True)
-    total = np.zeros((5, 5))
+    p = cov.shape[0]
+    total = np.zeros((p + 2, p + 2))
     for (a, b), count in zip(pairs, counts, strict=True):
-        e = np.zeros((5, 3))
+        e = np.zeros((p + 2, p))
         e[0, 0], e[1, 0] = a, 1.0 - a
         e[2, 1], e[3, 1] = b, 1.0 - b
-        e[4, 2] = 1.0
-        total += float(count) * (e @ cov3 @ e.T)
+        for i in range(2, p):
+            e[i + 2, i] = 1.0
+        total += float(count) * (e @ cov @ e.T)
     # the first row (interval -1) has no direction: count it like its successor
     return total * (h1.size + 1) / h1.size
