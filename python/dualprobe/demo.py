@@ -58,7 +58,7 @@ class DemoResult:
         ratio = self.rmse_reconstruction / self.rmse_fast_sensor
         lines.append(
             f"  reconstruction RMSE {self.rmse_reconstruction:.3f} K vs fast sensor "
-            f"{self.rmse_fast_sensor:.2f} K ({100 * ratio:.1f} %)"
+            f"{self.rmse_fast_sensor:.2f} K ({100 * ratio:.2g} % of it)"
         )
         lines.append(f"  wrote {self.report} and {self.figure} in {self.seconds:.1f} s")
         return "\n".join(lines)
