@@ -2,18 +2,25 @@
 
 ``characterise_pair`` is what ``dualprobe characterise`` calls. ``method="auto"`` (default)
 runs the state-variable-filter (SVF) cross-relation estimator of
-:mod:`dualprobe.reference.svf` with
+:mod:`dualprobe.reference.svf` (whose docstring has the maths and the measurements) with
 
 * the noise level of each sensor estimated from its own signal (:func:`estimate_noise_std`)
-  unless given;
-* the filter time constant ``tf`` chosen from the data: a coarse geometric scan of tf over
-  the record's time scales (first-order fits), then the fixed point
-  ``tf = kappa * tau_fast(tf)`` (kappa = 0.5 for order 1 and the hysteresis split, 0.25 for
-  order 2; see the measurements in :mod:`dualprobe.reference.svf`);
-* an identifiability check from the generalised eigenvalues: k eigenvalues within the
-  noise band (gap statistic below ``GAP_THRESHOLD``) mean a (k-1)-degree factor common to
-  both sensors. Then only the distinct part is identifiable: the reduced-order fit is
-  reported (``identifiability["identifiable"] = False``, with a message).
+  unless given, and floored at 1e-6 of the signal's standard deviation (exact data);
+* the filter time constant ``tf`` chosen from the data: a geometric scan of tf over the
+  record's time scales (first-order fits), then the fixed point ``tf = kappa tau_fast(tf)``
+  (kappa = 0.5 for order 1 and the hysteresis split, 0.25 for order 2);
+* the static model: unit gains (design.md) unless the affine model (gain ratio and offset
+  between the sensors) lowers the smallest generalised eigenvalue by more than
+  ``GAP_THRESHOLD`` noise standard deviations;
+* an identifiability check from the generalised eigenvalues mu_1 <= mu_2 <= ...: with the
+  right noise model the noise-only eigenvalues sit at 1 and scatter by sqrt(2/N_eff)
+  (N_eff: effective independent rows). k eigenvalues within ``GAP_THRESHOLD`` of that
+  band form a k-dimensional near-null space, i.e. a factor of degree k-1 common to both
+  sensors (P1 = Q R1, P2 = Q R2 makes ``(1 + gamma s) R1 T1 = (1 + gamma s) R2 T2`` hold for
+  every gamma). A common pole filters the gas temperature before both sensors and cannot be
+  seen, so the reduced-order fit (the distinct poles R1, R2) is reported with
+  ``identifiability["identifiable"] = False`` and a message; k-1 >= order means nothing is
+  identifiable (identical sensors or no excitation).
 
 ``method="ls" | "tls" | "gtls"`` runs the paper's difference-equation method (design.md 1.2)
 through the C++ core (or the NumPy reference if the core is not built).
@@ -41,9 +48,10 @@ __all__ = [
 ]
 
 METHODS = ("auto", "svf", "ls", "tls", "gtls")
-# An eigenvalue counts as "noise only" when its excess over the smallest one is below this
-# many standard deviations of the noise-only spread: exact common factors give 0-2.5 (25
-# simulated records, 10-100 Hz, 0.01-0.1 K), identifiable pairs >= 160 at 0.01 K.
+# An eigenvalue counts as "noise only" when its excess over the noise band is below this many
+# standard deviations of the noise-only spread: exact common factors gave 0-2.5 (25 simulated
+# records, 10-100 Hz, 0.01-0.1 K); distinct poles 0.17 s / 0.19 s at 100 Hz, 0.01 K gave
+# >= 160 (and were estimated to 2 %).
 GAP_THRESHOLD = 10.0
 KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
 RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std

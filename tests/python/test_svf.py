@@ -202,3 +202,17 @@ def test_bad_arguments() -> None:
         svf.column_maps(1, "cubic")
     with pytest.raises(ValueError, match="order 1"):
         svf.estimate(np.arange(50.0), np.arange(50.0), 0.1, tf=1.0, order=2, hysteresis=True)
+
+
+def test_heating_and_cooling_columns_add_up_to_the_derivative_column() -> None:
+    rng = np.random.default_rng(8)
+    x = np.cumsum(rng.standard_normal(2000))
+    y = np.cumsum(rng.standard_normal(2000))
+    disc = svf.discretise_filter(0.7, 0.1, 2)
+    h = (rng.random(1999) > 0.5).astype(float)
+    split = svf.regression_columns(x, y, disc, 1, (h, 1.0 - h))
+    whole = svf.regression_columns(x, y, disc, 1)
+    # ZOH of the FOH interpolation's slope is the FOH derivative: equal to rounding
+    np.testing.assert_allclose(split[0] + split[1], whole[0], atol=1e-12)
+    np.testing.assert_allclose(split[2] + split[3], whole[1], atol=1e-12)
+    np.testing.assert_array_equal(split[4], whole[2])
