@@ -57,3 +57,26 @@ def test_bench_rejects_bad_sample_count(capsys: pytest.CaptureFixture[str]) -> N
     assert main(["bench", "--samples", "12"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and err.count("\n") == 1
+
+
+@pytest.mark.slow
+def test_noise_study_robust_beats_plain_at_10_hz(tmp_path: Path) -> None:
+    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
+    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
+    from dualprobe.bench import bench_noise, noise_figure, noise_table
+
+    # Issue 7's hard case: 10 Hz, 0.1 K noise, gas within +/-5 K.
+    rows = bench_noise(noise_levels=(0.1,), sample_rates=(10.0,), duration=600.0, seeds=1)
+    by_method = {row["method"]: row for row in rows}
+    assert set(by_method) == {"plain", "robust"}
+    plain, robust = by_method["plain"], by_method["robust"]
+    assert robust["failures"] == 0
+    assert robust["tau_error"] < 0.05  # issue 7: both time constants within 5 % by default
+    # The exact inverse multiplies 0.1 K of noise by ~tau/Ts > 100: its RMSE is several K,
+    # while the robust reconstruction must be at most 35 % of the fast sensor's (issue 7).
+    assert robust["rmse"] < 0.35 * robust["sensor_rmse"]
+    assert not plain["rmse"] <= robust["rmse"]  # NaN (plain failed) or larger
+    table = noise_table(rows)
+    assert table.count("\n") == 2 and "| 10 | 0.1 |" in table
+    noise_figure(rows, tmp_path / "noise.png")
+    assert (tmp_path / "noise.png").read_bytes()[:4] == b"\x89PNG"
