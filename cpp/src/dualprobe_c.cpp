@@ -65,10 +65,14 @@ struct Reconstructor {
     const float g1 = sensor1.inverse(t1, previous1);
     const float g2 = sensor2.inverse(t2, previous2);
     const float raw = weight1 * g1 + (1.0f - weight1) * g2;
-    output = has_output ? lowpass_pole * output + (1.0f - lowpass_pole) * raw : raw;
-    has_output = true;
+    const float next = has_output ? lowpass_pole * output + (1.0f - lowpass_pole) * raw : raw;
     previous1 = t1;
     previous2 = t2;
+    // Huge samples or a near-zero b can overflow float: never report such a value as ok, and
+    // keep the low-pass state finite.
+    if (!std::isfinite(next)) return DP_STATUS_INFEASIBLE;
+    output = next;
+    has_output = true;
     *gas = output;
     return DP_STATUS_OK;
   }

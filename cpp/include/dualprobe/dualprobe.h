@@ -137,9 +137,11 @@ void dp_recon_reset_f32(dp_recon_instance_f32 *instance);
 dp_status dp_recon_set_time_constants_f32(dp_recon_instance_f32 *instance, float tau1,
                                           float tau2);
 
-/* Consumes T1(k), T2(k); on DP_STATUS_OK writes the gas temperature over [k-1, k) to *gas.
- * The first sample after init/reset only primes and returns DP_STATUS_NOT_READY. A non-finite
- * sample returns DP_STATUS_NON_FINITE_INPUT, state untouched, *gas untouched. */
+/* Consumes T1(k), T2(k); on DP_STATUS_OK writes the gas temperature over [k-1, k) to *gas
+ * (always finite). The first sample after init/reset only primes and returns
+ * DP_STATUS_NOT_READY. A non-finite sample returns DP_STATUS_NON_FINITE_INPUT, state and *gas
+ * untouched. A value that overflows float (absurd samples or time constants) returns
+ * DP_STATUS_INFEASIBLE, *gas untouched, the sample kept as the previous one. */
 dp_status dp_recon_update_f32(dp_recon_instance_f32 *instance, float t1, float t2, float *gas);
 
 /* block_size calls of dp_recon_update_f32; gas[i] is NaN where no value was formed. Returns
