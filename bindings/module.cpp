@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "bindings.hpp"
 #include "dualprobe/dualprobe.hpp"
 
 namespace py = pybind11;
@@ -209,4 +210,6 @@ PYBIND11_MODULE(_core, m) {
         return simulate_hysteretic<double>(gas, ts, tau_heat, tau_cool, initial);
       },
       "tg"_a, "ts"_a, "tau_heat"_a, "tau_cool"_a, "initial"_a);
+  dualprobe_bindings::bind_svf(m);
+  dualprobe_bindings::bind_kalman(m);
 }
