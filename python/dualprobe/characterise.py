@@ -43,6 +43,7 @@ class Characterisation:
     reference_column: str | None
     rmse_vs_reference: float | None
     source: str | None = None
+    requested_order: int | None = None
 
     def to_json_dict(self) -> dict[str, Any]:
         """The `--json` document (see the issue 2 specification)."""
@@ -94,6 +95,14 @@ class Characterisation:
                 cool = ", ".join(f"{tau:.5g}" for tau in est.time_constants_cool[index])
                 text += f" (heating {heat} s, cooling {cool} s)"
             lines.append(text)
+        if self.requested_order is not None and est.order != self.requested_order:
+            lines.append(
+                f"  note: order {self.requested_order} requested; the data support order "
+                f"{est.order}"
+            )
+        message = est.identifiability.get("message")
+        if message:
+            lines.append(f"  note: {' '.join(str(message).split())}")
         noise = ", ".join(f"{s:.3g}" for s in est.noise_std)
         lines.append(f"  noise std: {noise} K" + (f"; beta {est.beta:.6g}" if est.beta else ""))
         if self.gas_estimate is not None:
@@ -209,7 +218,7 @@ def characterise_arrays(
         detail = estimate.details.get("message") if estimate.details else None
         text = f"estimation failed: {estimate.status.replace('_', ' ')}"
         if detail:
-            text += f" ({detail})"
+            text += f": {detail}"
         else:
             text += {
                 "insufficient_excitation": " (the signals do not change enough to identify "
@@ -262,6 +271,7 @@ def characterise_arrays(
         reference_column=reference_column if reference is not None else None,
         rmse_vs_reference=rmse,
         source=source,
+        requested_order=order,
     )
 
 
