@@ -34,12 +34,9 @@ _TRACE_PC = re.compile(r"\[[0-9a-f]+/([0-9a-f]+)/")
 
 
 def instruction_table(elf: Path, objdump: str) -> tuple[dict[int, int], dict[int, str]]:
-    """Address -> (length in bytes, mnemonic) of every instruction in the image."""
-    text = subprocess.run([objdump, "-d", "--no-show-raw-insn", str(elf)], check=True,
-                          capture_output=True, text=True).stdout
+    """Address -> length in bytes, and address -> mnemonic, of every instruction."""
     raw = subprocess.run([objdump, "-d", str(elf)], check=True, capture_output=True,
                          text=True).stdout
-    del text  # the raw listing carries both the encoding and the mnemonic
     lengths: dict[int, int] = {}
     mnemonics: dict[int, str] = {}
     for line in raw.splitlines():

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from fwstream import compare_outputs, parse_output  # noqa: E402
+from fwstream import compare_outputs, parse_output
 
 RAM_ORIGIN = 0x20000000  # arm/mcu.ld
 # Host and M4F share every arithmetic operation (IEEE single, no FMA contraction); only libm's

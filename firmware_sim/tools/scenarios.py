@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from fwstream import COUNTS_OPEN, COUNTS_SHORT, Calibration, ohm_to_counts
 
 from dualprobe import simulate
-from fwstream import COUNTS_OPEN, COUNTS_SHORT, Calibration, ohm_to_counts
 
 
 @dataclass
