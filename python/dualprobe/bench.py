@@ -258,6 +258,17 @@ def bench_noise(
     return rows
 
 
+def _tau_cell(row: dict[str, Any]) -> str:
+    if row["failures"] == row["runs"]:
+        return "failed"
+    text = f"{100 * row['tau_error']:.2f} %"
+    return text + (f" ({row['failures']}/{row['runs']} failed)" if row["failures"] else "")
+
+
+def _rmse_cell(row: dict[str, Any]) -> str:
+    return f"{row['rmse']:.3g}" if math.isfinite(row["rmse"]) else "failed"
+
+
 def noise_table(rows: list[dict[str, Any]]) -> str:
     """Markdown table: one line per (rate, noise), plain and robust side by side."""
     lines = [
@@ -271,9 +282,8 @@ def noise_table(rows: list[dict[str, Any]]) -> str:
     for (rate, noise), by_method in pairs.items():
         plain, robust = by_method[PLAIN], by_method[ROBUST]
         lines.append(
-            f"| {rate:g} | {noise:g} | {100 * plain['tau_error']:.2f} % "
-            f"| {100 * robust['tau_error']:.2f} % | {plain['rmse']:.3g} | {robust['rmse']:.3g} "
-            f"| {robust['sensor_rmse']:.3g} |"
+            f"| {rate:g} | {noise:g} | {_tau_cell(plain)} | {_tau_cell(robust)} "
+            f"| {_rmse_cell(plain)} | {_rmse_cell(robust)} | {robust['sensor_rmse']:.3g} |"
         )
     return "\n".join(lines)
 
@@ -325,7 +335,7 @@ def noise_figure(rows: list[dict[str, Any]], path: str | os.PathLike[str]) -> No
         axis.set_xlabel("sensor noise std [K]")
         axis.grid(alpha=0.3, which="both")
     left.set_ylabel("larger time-constant error [%]")
-    left.set_title("time constants (median over seeds)")
+    left.set_title("time constants (median over seeds; failed = 100 %)")
     right.set_ylabel("reconstruction RMSE vs true gas [K]")
     right.set_title("gas temperature reconstruction")
     left.legend(fontsize="small")
