@@ -39,7 +39,7 @@ def test_make_pair_follows_the_first_order_model() -> None:
 def test_bench_cli_small(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     pytest.importorskip("dualprobe._core", reason="C++ core not built (pip install -e .)")
     pytest.importorskip("dualprobe.reference.difference", reason="NumPy reference not written")
-    target = tmp_path / "bench.json"
+    target = tmp_path / "new" / "bench.json"  # the directory is created, as `make bench` needs
     status = main(["bench", "--samples", "20000", "--json", str(target)])
     captured = capsys.readouterr()
     assert status == 0, captured.err

@@ -115,8 +115,11 @@ def run(args: argparse.Namespace) -> int:
 
     if args.json is not None:
         target = Path(args.json)
-        if target.is_dir() or not target.parent.is_dir():
-            raise UsageError(f"--json {target}: not a writable file path")
+        if target.is_dir():
+            raise UsageError(f"--json {target}: is a directory")
+        if target.parent.exists() and not target.parent.is_dir():
+            raise UsageError(f"--json {target}: {target.parent} is not a directory")
+        target.parent.mkdir(parents=True, exist_ok=True)
     out = Path(args.out)
     if args.section in ("noise", "all"):
         if out.exists() and not out.is_dir():
