@@ -69,17 +69,29 @@ def _read_text(path: Path) -> str:
     return text
 
 
+def _delimiter(text: str) -> str:
+    """Comma, unless the header line has none but has semicolons or tabs (locale exports)."""
+    header = next((line for line in text.splitlines() if line.strip()), "")
+    if "," in header:
+        return ","
+    for candidate in (";", "\t"):
+        if candidate in header:
+            return candidate
+    return ","
+
+
 def read_csv_table(path: str | os.PathLike[str]) -> tuple[list[str], list[list[str]], list[int]]:
     """Read a CSV file with a header row.
 
     Returns (header, data rows of stripped cells, file line number of each data row). Blank
-    lines are skipped; whitespace around cells is ignored. Raises :class:`InputError`.
+    lines are skipped; whitespace around cells is ignored; the delimiter is a comma, or a
+    semicolon / tab when the header has no comma. Raises :class:`InputError`.
     """
     path = Path(path)
     text = _read_text(path)
     rows: list[list[str]] = []
     lines: list[int] = []
-    reader = csv.reader(_io.StringIO(text, newline=""))
+    reader = csv.reader(_io.StringIO(text, newline=""), delimiter=_delimiter(text))
     try:
         for row in reader:
             cells = [cell.strip() for cell in row]

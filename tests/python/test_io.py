@@ -66,6 +66,17 @@ def test_accepts_whitespace_blank_lines_crlf_and_bom(tmp_path: Path) -> None:
     np.testing.assert_array_equal(columns["T_m2"], 2.0 * np.arange(12))
 
 
+@pytest.mark.parametrize("delimiter", [";", "\t"])
+def test_semicolon_and_tab_separated(tmp_path: Path, delimiter: str) -> None:
+    path = tmp_path / "s.csv"
+    rows = [delimiter.join(["t", "T_m1", "T_m2"])]
+    rows += [delimiter.join([str(k), str(2 * k), "1"]) for k in range(10)]
+    path.write_text("\n".join(rows) + "\n")
+    _, columns, ts = load_columns(path, COLUMNS)
+    assert ts == 1.0
+    np.testing.assert_array_equal(columns["T_m1"], 2.0 * np.arange(10))
+
+
 def test_printed_time_resolution_is_not_irregularity(tmp_path: Path) -> None:
     # 1 kHz stamps printed with 3 decimals: float parsing makes the differences uneven at the
     # 1e-13 level, which is rounding, not jitter.
