@@ -87,6 +87,7 @@ class TfFit:
     aicc: float
     bic: float
     residual_autocorrelation: float
+    input_noise_std: float
     hold: str
     initial: str
     parameter_names: tuple[str, ...]
@@ -121,6 +122,8 @@ class TfFit:
             f"{self.residual_autocorrelation:.2f}"
             + (" (uncertainties optimistic)" if abs(self.residual_autocorrelation) > 0.3 else "")
         )
+        if self.input_noise_std > 0:
+            lines.append(f"input noise {self.input_noise_std:.3g} included in the uncertainties")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -146,6 +149,7 @@ class TfFit:
             "aicc": self.aicc,
             "bic": self.bic,
             "residual_autocorrelation": self.residual_autocorrelation,
+            "input_noise_std": self.input_noise_std,
             "hold": self.hold,
             "initial": self.initial,
             "parameter_names": list(self.parameter_names),
@@ -436,7 +440,7 @@ class _Problem:
         taus = np.exp(nonlinear[: self.order])
         delay = float(nonlinear[self.order]) if self.delay_estimated else 0.0
         design = self.linear_design(taus, delay)
-        coef, *_ = linalg.lstsq(design, self.y, check_finite=False)
+        coef, *_ = linalg.lstsq(design, self.y, check_finite=False, lapack_driver="gelsy")
         return self.y - design @ coef, coef
 
 
@@ -509,19 +513,19 @@ def _search(problem: _Problem, duration: float, n_local: int) -> np.ndarray:
             continue
         seen.append(key)
         x0 = np.clip(start, lower, upper)
+        # Levenberg-Marquardt (MINPACK) is much cheaper per step than the bounded solver on
+        # long records; the box is enforced by clipping inside the residual (flat outside).
         sol = optimize.least_squares(
-            lambda p: problem.projected(p)[0],
+            lambda p: problem.projected(np.clip(p, lower, upper))[0],
             x0,
-            bounds=(lower, upper),
-            x_scale=1.0,
-            method="trf",
+            method="lm",
             xtol=1e-10,
             ftol=1e-12,
             max_nfev=200,
         )
         cost = float(sol.fun @ sol.fun)
         if best is None or cost < best[0]:
-            best = (cost, sol.x)
+            best = (cost, np.clip(sol.x, lower, upper))
     assert best is not None
     return best[1]
 
@@ -568,15 +572,55 @@ def _parameter_scale(problem: _Problem, theta: np.ndarray) -> np.ndarray:
     return scale
 
 
-def _covariance(jac: np.ndarray, residual: np.ndarray) -> np.ndarray:
-    """s^2 (J^T J)^-1 with s^2 = SSE / (N - p); column-equilibrated for conditioning."""
+def _robust_noise_std(x: np.ndarray) -> float:
+    """White-noise level from second differences (MAD; var(d2 e) = 6 sigma^2), robust to steps
+    and blind to smooth signal."""
+    d2 = np.diff(x, 2)
+    if d2.size < 3:
+        return 0.0
+    mad = float(np.median(np.abs(d2 - np.median(d2))))
+    return 1.482602218505602 * mad / math.sqrt(6.0)
+
+
+def _input_response(problem: _Problem, theta: np.ndarray) -> np.ndarray:
+    """Impulse response h of the fitted map from input samples to output samples
+    (yhat = h * u plus the free response), length N."""
+    gain, taus, delay, _ = _unpack(problem, theta)
+    size = problem.y.size
+    lead = math.floor(delay / problem.ts) + 3  # past the start-up padding of the input
+    impulse = np.zeros(size + lead)
+    impulse[lead] = 1.0
+    forced, _ = _responses(taus, delay, problem.ts, problem.hold, impulse)
+    return gain * forced[lead:]
+
+
+def _covariance(
+    jac: np.ndarray,
+    residual: np.ndarray,
+    input_response: np.ndarray | None = None,
+    input_noise_std: float = 0.0,
+) -> np.ndarray:
+    """Parameter covariance (column-equilibrated for conditioning).
+
+    Output noise: s^2 (J^T J)^-1 with s^2 = SSE / (N - p). Input noise w (white, sigma_u) moves
+    the model output by H w (H = convolution with the input response h), hence the estimate by
+    -(J^T J)^-1 J^T H w: add sigma_u^2 (J^T J)^-1 (H^T J)^T (H^T J) (J^T J)^-1, and remove the
+    share sigma_u^2 |h|^2 of the residual variance that it explains.
+    """
     size, k = jac.shape
     variance = float(residual @ residual) / max(size - k, 1)
     jtj = jac.T @ jac
     norms = np.sqrt(np.diag(jtj))
     norms[norms == 0] = 1.0
-    inv_scaled = linalg.pinvh(jtj / np.outer(norms, norms))
-    return variance * inv_scaled / np.outer(norms, norms)
+    inv = linalg.pinvh(jtj / np.outer(norms, norms)) / np.outer(norms, norms)
+    if input_response is None or input_noise_std <= 0:
+        return variance * inv
+    h = input_response
+    # H^T J: correlate every Jacobian column with h (time-reversed convolution, by FFT).
+    ht_j = np.column_stack([signal.fftconvolve(jac[::-1, j], h)[:size][::-1] for j in range(k)])
+    output_variance = max(variance - input_noise_std**2 * float(h @ h), 0.0)
+    middle = ht_j.T @ ht_j
+    return output_variance * inv + input_noise_std**2 * (inv @ middle @ inv)
 
 
 def fit_transfer_function(
@@ -589,6 +633,7 @@ def fit_transfer_function(
     hold: Hold = "foh",
     initial: Initial = "estimate",
     n_starts: int = 4,
+    input_noise_std: float | Literal["auto"] | None = "auto",
 ) -> TfFit:
     """Fit ``K exp(-theta s) / prod(1 + tau_i s)`` from input ``u`` to output ``y``.
 
@@ -608,6 +653,13 @@ def fit_transfer_function(
         "estimate" (initial state fitted, default) or "steady" (at rest with ``u[0]``).
     n_starts:
         Number of local searches started from the best points of the coarse grid.
+    input_noise_std:
+        White noise on the measured input, propagated into the parameter uncertainties
+        (errors in variables: input noise filtered by the model is slow, and the fit absorbs
+        its low-frequency part into the parameters, so the residuals cannot reveal it).
+        "auto" (default) estimates it robustly from the input's second differences, which is
+        right for a smooth measured signal and conservative for an input that is rough at the
+        sample scale; None or 0 treats the input as exact (what tfest does).
 
     Raises
     ------
@@ -624,6 +676,18 @@ def fit_transfer_function(
         raise ValueError(f"initial must be one of {INITIAL_CONDITIONS}, got {initial!r}")
     if not (isinstance(n_starts, int) and n_starts >= 1):
         raise ValueError(f"n_starts must be a positive integer, got {n_starts!r}")
+    if not (
+        input_noise_std is None
+        or input_noise_std == "auto"
+        or (
+            isinstance(input_noise_std, (int, float))
+            and math.isfinite(input_noise_std)
+            and input_noise_std >= 0
+        )
+    ):
+        raise ValueError(
+            f"input_noise_std must be 'auto', None or a finite number >= 0, got {input_noise_std!r}"
+        )
     u = _as_signal(u, "u")
     y = _as_signal(y, "y")
     if u.size != y.size:
@@ -646,22 +710,32 @@ def fit_transfer_function(
 
     # Polish all parameters together (physical units, scaled) and get the Jacobian there.
     scale = _parameter_scale(problem, theta)
-    lower = np.full(theta.size, -np.inf)
-    lower[1 : 1 + order] = 1e-3 * ts
-    if delay:
-        lower[1 + order] = 0.0
+    # Internally the time constants are logarithms (positive, scale-free) and the dead time is
+    # clipped at zero; Levenberg-Marquardt as in the search.
+    tau_slice = slice(1, 1 + order)
+
+    def to_physical(internal: np.ndarray) -> np.ndarray:
+        physical = internal.copy()
+        physical[tau_slice] = np.exp(internal[tau_slice])
+        if delay:
+            physical[1 + order] = max(internal[1 + order], 0.0)
+        return physical
+
+    internal = theta.copy()
+    internal[tau_slice] = np.log(theta[tau_slice])
+    internal_scale = scale.copy()
+    internal_scale[tau_slice] = 1.0
     sol = optimize.least_squares(
-        lambda p: y - _model_output(problem, p),
-        np.maximum(theta, lower),
-        bounds=(lower, np.full(theta.size, np.inf)),
-        x_scale=scale,
-        method="trf",
+        lambda p: y - _model_output(problem, to_physical(p)),
+        internal,
+        x_scale=internal_scale,
+        method="lm",
         xtol=1e-12,
         ftol=1e-14,
         gtol=1e-12,
-        max_nfev=100,
+        max_nfev=100 * theta.size,
     )
-    theta = sol.x
+    theta = to_physical(sol.x)
     if order == 2 and theta[1] < theta[2]:
         # Report tau_a >= tau_b: re-express the same model with the lags swapped (the initial
         # state refers to the cascade, so it is re-solved for the new ordering).
@@ -671,7 +745,11 @@ def fit_transfer_function(
         theta = _full_parameters(problem, swapped)
     residual = y - _model_output(problem, theta)
     jac = _jacobian(problem, theta, _parameter_scale(problem, theta))
-    cov = _covariance(jac, residual)
+    sigma_u = (
+        _robust_noise_std(u) if input_noise_std == "auto" else float(input_noise_std or 0.0)  # type: ignore[arg-type]
+    )
+    response = _input_response(problem, theta) if sigma_u > 0 else None
+    cov = _covariance(jac, residual, response, sigma_u)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
 
     names = ["gain", *(["tau"] if order == 1 else ["tau_a", "tau_b"])]
@@ -721,6 +799,7 @@ def fit_transfer_function(
         aicc=aicc,
         bic=bic,
         residual_autocorrelation=acf1,
+        input_noise_std=sigma_u,
         hold=hold,
         initial=initial,
         parameter_names=tuple(names),
