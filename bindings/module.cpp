@@ -57,18 +57,11 @@ std::size_t checked_length(const Array<S>& a, const Array<S>& b) {
 }
 
 // Feeds a batch; a non-finite sample is refused and breaks the chain of differences so no
-// difference spans the gap. Returns the number of refused samples.
+// difference spans the gap (DifferenceEstimator::update_block). Returns the refused count.
 template <typename S>
 std::size_t feed_batch(dualprobe::DifferenceEstimator<S>& estimator, const S* t1, const S* t2,
                        std::size_t n) {
-  std::size_t refused = 0;
-  for (std::size_t k = 0; k < n; ++k) {
-    if (estimator.update(t1[k], t2[k]) != dualprobe::Status::ok) {
-      ++refused;
-      estimator.break_chain();
-    }
-  }
-  return refused;
+  return estimator.update_block(t1, t2, n);
 }
 
 template <typename S>

@@ -3,6 +3,7 @@
 #include <cmath>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "dualprobe/difference_estimator.hpp"
 #include "test_support.hpp"
@@ -183,6 +184,41 @@ TEST(DifferenceEstimator, GtlsNoiseCovarianceMatchesDerivation) {
   EXPECT_DOUBLE_EQ(c(2, 2), 0.08);
   EXPECT_DOUBLE_EQ(c(0, 2), 0.0);
   EXPECT_EQ(c, c.transpose());
+}
+
+}  // namespace
+
+namespace {
+
+template <typename T>
+class BlockUpdateTest : public ::testing::Test {};
+using BlockScalars = ::testing::Types<float, double>;
+TYPED_TEST_SUITE(BlockUpdateTest, BlockScalars);
+
+TYPED_TEST(BlockUpdateTest, BlockEqualsSampleBySampleIncludingGaps) {
+  using S = TypeParam;
+  const auto series = dualprobe::test::difference_equation_pair(7000, kTau1, kTau2, kTs);
+  std::vector<S> t1(series.t1.begin(), series.t1.end());
+  std::vector<S> t2(series.t2.begin(), series.t2.end());
+  t1[100] = std::numeric_limits<S>::quiet_NaN();
+  t2[5000] = std::numeric_limits<S>::infinity();
+  for (S forgetting : {S(1), S(0.999)}) {
+    auto block = make_estimator<S>(Method::gtls, forgetting);
+    auto single = make_estimator<S>(Method::gtls, forgetting);
+    // Uneven chunks so runs cross the internal block size and the chunk borders.
+    const std::size_t cuts[] = {0, 3, 2500, 2501, 4999, 7000};
+    std::size_t refused = 0;
+    for (std::size_t c = 0; c + 1 < sizeof(cuts) / sizeof(cuts[0]); ++c) {
+      refused += block.update_block(t1.data() + cuts[c], t2.data() + cuts[c], cuts[c + 1] - cuts[c]);
+    }
+    for (std::size_t k = 0; k < t1.size(); ++k) {
+      if (single.update(t1[k], t2[k]) != Status::ok) single.break_chain();
+    }
+    EXPECT_EQ(refused, 2u);
+    // Same operations in the same order: equal to the last bit.
+    EXPECT_EQ(block.scatter(), single.scatter());
+    EXPECT_EQ(block.solve().tau1, single.solve().tau1);
+  }
 }
 
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <cstddef>
 
 #include "dualprobe/first_order.hpp"
 #include "dualprobe/gtls.hpp"
@@ -121,6 +122,31 @@ class DifferenceEstimator {
     return Status::ok;
   }
 
+  // Feeds n samples; equivalent to calling update() on each (same arithmetic in the same
+  // order, so the result is bit-identical) but with the scatter held in registers over each
+  // run of finite samples. A non-finite sample is refused and breaks the chain of differences
+  // so that no difference spans the gap. Returns the number of refused samples.
+  std::size_t update_block(const Scalar* t1, const Scalar* t2, std::size_t n) noexcept {
+    std::size_t refused = 0;
+    std::size_t k = 0;
+    while (k < n) {
+      if (!std::isfinite(t1[k]) || !std::isfinite(t2[k])) {
+        ++refused;
+        ++k;
+        has_previous_ = false;
+        continue;
+      }
+      // Runs are capped so the accumulation re-reads samples the finiteness scan just
+      // brought into cache (one pass over memory instead of two).
+      const std::size_t limit = (n - k > kBlock) ? k + kBlock : n;
+      std::size_t end = k;
+      while (end < limit && std::isfinite(t1[end]) && std::isfinite(t2[end])) ++end;
+      accumulate_run(t1 + k, t2 + k, end - k);
+      k = end;
+    }
+    return refused;
+  }
+
   Result solve() const noexcept {
     Result out;
     if (scatter_.weight() < Scalar(2.5)) {  // fewer than three rows cannot fix two unknowns
@@ -153,6 +179,58 @@ class DifferenceEstimator {
   Eigen::Matrix<Scalar, 3, 3> scatter() const noexcept { return scatter_.matrix(); }
 
  private:
+  // A run of finite samples; the chain continues from the previous sample when there is one.
+  void accumulate_run(const Scalar* t1, const Scalar* t2, std::size_t n) noexcept {
+    if (n == 0) return;
+    std::size_t start = 0;
+    if (!has_previous_) {
+      previous1_ = t1[0];
+      previous2_ = t2[0];
+      has_previous_ = true;
+      start = 1;
+    }
+    if (config_.forgetting < Scalar(1)) {
+      for (std::size_t k = start; k < n; ++k) {
+        scatter_.add(Row(t1[k] - previous1_, previous1_ - previous2_, t2[k] - previous2_),
+                     config_.forgetting);
+        previous1_ = t1[k];
+        previous2_ = t2[k];
+      }
+      return;
+    }
+    // The six scatter entries live in locals so the compiler keeps them in registers; the
+    // operations are those of SymmetricScatter::add, in the same order.
+    auto& packed = scatter_.packed();
+    Scalar s00 = packed[0], s01 = packed[1], s02 = packed[2];
+    Scalar s11 = packed[3], s12 = packed[4], s22 = packed[5];
+    Scalar p1 = previous1_;
+    Scalar p2 = previous2_;
+    for (std::size_t k = start; k < n; ++k) {
+      const Scalar z0 = t1[k] - p1;
+      const Scalar z1 = p1 - p2;
+      const Scalar z2 = t2[k] - p2;
+      s00 += z0 * z0;
+      s01 += z0 * z1;
+      s02 += z0 * z2;
+      s11 += z1 * z1;
+      s12 += z1 * z2;
+      s22 += z2 * z2;
+      p1 = t1[k];
+      p2 = t2[k];
+    }
+    packed[0] = s00;
+    packed[1] = s01;
+    packed[2] = s02;
+    packed[3] = s11;
+    packed[4] = s12;
+    packed[5] = s22;
+    scatter_.add_weight(Scalar(n - start));
+    previous1_ = p1;
+    previous2_ = p2;
+  }
+
+  static constexpr std::size_t kBlock = 2048;
+
   SymmetricScatter<Scalar, 3> scatter_{};
   Scalar previous1_{0};
   Scalar previous2_{0};

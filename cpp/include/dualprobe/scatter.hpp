@@ -56,6 +56,11 @@ class SymmetricScatter {
 
   Scalar weight() const noexcept { return weight_; }
 
+  // Direct access for block updates that keep the entries in registers (row-major upper
+  // triangle: (0,0), (0,1), ..., (0,N-1), (1,1), ...); add_weight accounts for their rows.
+  Eigen::Matrix<Scalar, packed_size, 1>& packed() noexcept { return packed_; }
+  void add_weight(Scalar rows) noexcept { weight_ += rows; }
+
  private:
   Eigen::Matrix<Scalar, packed_size, 1> packed_{Eigen::Matrix<Scalar, packed_size, 1>::Zero()};
   Scalar weight_{0};
