@@ -120,6 +120,17 @@ Reconstructor* reconstructor(dp_recon_instance_f32* instance) noexcept {
 
 dp_status to_c(dualprobe::Status status) noexcept { return static_cast<dp_status>(status); }
 
+// A C caller may store any integer in an enum field; reading it through the C++ enum type
+// would be undefined for values outside the enumerators' range, so read its representation
+// (int-sized on most ABIs, one byte with arm-none-eabi's default -fshort-enums).
+template <typename Enum>
+int enum_value(const Enum* field) noexcept {
+  std::underlying_type_t<Enum> value;
+  static_assert(sizeof value == sizeof(Enum), "enum representation");
+  std::memcpy(&value, field, sizeof value);
+  return static_cast<int>(value);
+}
+
 }  // namespace
 
 extern "C" {
@@ -131,7 +142,7 @@ dp_status dp_diff_init_f32(dp_diff_instance_f32* instance, const dp_diff_config_
   // invalid_argument, which is the documented state after a failed init.
   Estimator* est = new (instance->storage.words) Estimator();
   if (config == nullptr) return DP_STATUS_INVALID_ARGUMENT;
-  const int method = static_cast<int>(config->method);
+  const int method = enum_value(&config->method);
   if (method < DP_METHOD_LS || method > DP_METHOD_GTLS) return DP_STATUS_INVALID_ARGUMENT;
   Estimator::Config core_config;
   core_config.sample_interval = config->sample_interval;
@@ -217,7 +228,7 @@ dp_status dp_recon_init_f32(dp_recon_instance_f32* instance, const dp_recon_conf
   std::memset(instance, 0, sizeof(*instance));
   Reconstructor* rec = new (instance->storage.words) Reconstructor();
   if (config == nullptr) return DP_STATUS_INVALID_ARGUMENT;
-  const int source = static_cast<int>(config->source);
+  const int source = enum_value(&config->source);
   const bool lowpass_ok = config->lowpass_tau >= 0.0f && std::isfinite(config->lowpass_tau);
   if (source < DP_SOURCE_SENSOR1 || source > DP_SOURCE_WEIGHTED || !lowpass_ok) {
     return DP_STATUS_INVALID_ARGUMENT;
@@ -270,7 +281,7 @@ dp_status dp_recon_block_f32(dp_recon_instance_f32* instance, const float* t1, c
 }
 
 const char* dp_status_string(dp_status status) {
-  const int value = static_cast<int>(status);
+  const int value = enum_value(&status);
   if (value < DP_STATUS_OK || value > DP_STATUS_NOT_READY) return "unknown";
   return dualprobe::to_string(static_cast<dualprobe::Status>(value));
 }

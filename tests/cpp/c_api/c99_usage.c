@@ -3,6 +3,7 @@
  * through init / update / solve / reconstruct with the documented statuses. */
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "dualprobe/dualprobe.h"
 
@@ -39,6 +40,13 @@ int main(void) {
   if (dp_recon_update_f32(&g_reconstruction, 50.0f, 50.0f, &gas) != DP_STATUS_OK) return 1;
   if (fabsf(gas - 50.0f) > 1e-3f) return 1;
   if (dp_diff_update_f32(&g_estimator, NAN, 1.0f) != DP_STATUS_NON_FINITE_INPUT) return 1;
+  /* In C any int may sit in an enum: out-of-range values are handled, not undefined. */
+  if (strcmp(dp_status_string((dp_status)42), "unknown") != 0) return 1;
+  {
+    dp_diff_config_f32 bad = config;
+    bad.method = (dp_method)7;
+    if (dp_diff_init_f32(&g_estimator, &bad) != DP_STATUS_INVALID_ARGUMENT) return 1;
+  }
   printf("c99 usage ok: tau1 %.4f tau2 %.4f\n", (double)result.tau1, (double)result.tau2);
   return 0;
 }

@@ -2,7 +2,7 @@
 // on a realistic signal (100 Hz Pt-100 pair, fluctuating gas with steps, 0.02 K noise),
 // checked every 1 % of the run against a double-precision core estimator fed the same
 // samples: no NaN, no drift (the float scatter stays within its rounding bound of the double
-// one, the effective row count stays at 1/(1-lambda)), positive definite scatter, and time
+// one, the effective row count stays at sum lambda^i), positive definite scatter, and time
 // constants that agree with double within what the conditioning allows.
 //
 // Usage: dualprobe_c_api_soak [updates]   (default 1e8; the sanitizer build runs fewer)
@@ -93,7 +93,9 @@ int main(int argc, char** argv) {
     check(relative <= scatter_bound, "float scatter drifted from double", k, relative,
           scatter_bound);
     const double rows = dp_diff_rows_f32(&estimator);
-    const double rows_expected = 1.0 / (1.0 - static_cast<double>(kForgetting));
+    // k samples give k - 1 rows: sum of lambda^i for i < k - 1.
+    const double lambda = kForgetting;
+    const double rows_expected = (1.0 - std::pow(lambda, static_cast<double>(k - 1))) / (1.0 - lambda);
     // Same bound on the effective row count (a scalar fixed point of w = lambda w + 1).
     check(std::abs(rows / rows_expected - 1.0) <= scatter_bound, "row count drifted", k,
           rows / rows_expected - 1.0, scatter_bound);
