@@ -41,6 +41,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
+import scipy.linalg.lapack
 import scipy.optimize
 
 from dualprobe.reference.kalman import GAS_MODELS, PairModel, kalman_filter, pair_model
@@ -58,9 +59,12 @@ JUMP_DOF = 1.0  # Student-t increments: a jump costs ~log(size), not size^2 (not
 MIN_SAMPLES = 8  # fewer: no noise level, no intensity can be estimated
 _DIFF_ORDER = 3  # third differences: a first-order sensor's kinks at gas steps are outliers
 _SIGMA_FLOOR_REL = 1e-9  # smallest noise level, relative to the signal scale (exact data)
-_MAX_OUTER = 40  # alternations weights <-> intensity; converges in ~5-20
+_MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
+_SELECT_ROUNDS = 3  # rounds given to every gas model before the better one is finished
+_NEWTON_H = 0.2  # log q step of the parabola (the nll is smooth in log q on this scale)
+_NEWTON_MAX = 3.0  # largest log q move per round
 _MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
-_LOGQ_TOL = 0.02  # 2 % in q: far below what changes the reconstruction
+_LOGQ_TOL = 0.1  # 10 % in q: the reconstruction changes by a fraction of that
 
 
 def estimate_noise_std(x: np.ndarray, order: int = _DIFF_ORDER) -> float:
@@ -160,7 +164,7 @@ class _Trajectory:
         self.samples = y.shape[0]
         self.r_inv = np.diag(1.0 / sigma**2)
         self.log_det_2pi_r = float(np.sum(np.log(2.0 * np.pi * sigma**2)))
-        self.floor = model.floor(sigma)
+        self.sigma = sigma
         self.hrh = model.h.T @ self.r_inv @ model.h
         self.rhs = (y @ (self.r_inv @ model.h)).ravel()
         self.upper = 2 * self.n - 1
@@ -168,39 +172,46 @@ class _Trajectory:
     def evaluate(
         self, log_q: float, lam: np.ndarray, modes: np.ndarray
     ) -> tuple[float, np.ndarray, np.ndarray]:
-        """Gaussian marginal negative log-likelihood of y given (q, lambda, modes), the MAP
-        trajectory (N, n) and the unweighted squared Mahalanobis sizes m_k^2 (N-1,).
-        ``inf`` when the normal equations are not numerically positive definite."""
+        """Gaussian negative log marginal likelihood of y for increments ``N(0, Qb/lambda_k)``
+        (exact: ``J(x) + 1/2 log det A - N n/2 log 2 pi``), the MAP trajectory (N, n) and
+        the unweighted squared Mahalanobis sizes m_k^2 (N-1,) of its increments. ``inf``
+        when the normal equations are not numerically positive definite."""
         model, n, big_n = self.model, self.n, self.samples
-        qb = math.exp(log_q) * model.q_unit + self.floor
+        q = math.exp(log_q)
+        qb = q * model.q_unit + model.floor(self.sigma, q)
         w_inv = np.linalg.inv(qb)
         log_det_qb = np.linalg.slogdet(2.0 * np.pi * qb)[1]
         phi = model.phi
         pwp = np.einsum("mji,mjk,mkl->mil", phi, w_inv, phi)
         pw = np.einsum("mji,mjk->mik", phi, w_inv)
-        if phi.shape[0] == 1:
-            diag_next = lam[:, None, None] * pwp[0]
-            diag_prev = lam[:, None, None] * w_inv[0]
-            off = -lam[:, None, None] * pw[0]
+        single = phi.shape[0] == 1
+        if single:
+            pwp_k, w_inv_k, pw_k = pwp[0], w_inv[0], pw[0]
         else:
-            diag_next = lam[:, None, None] * pwp[modes]
-            diag_prev = lam[:, None, None] * w_inv[modes]
-            off = -lam[:, None, None] * pw[modes]
-        diag = np.broadcast_to(self.hrh, (big_n, n, n)).copy()
-        diag[:-1] += diag_next
-        diag[1:] += diag_prev
+            pwp_k, w_inv_k, pw_k = pwp[modes].T, w_inv[modes].T, pw[modes].T  # (n, n, N-1)
+        lam_next = np.zeros(big_n)  # weight of the interval after each sample
+        lam_next[:-1] = lam
+        lam_prev = np.zeros(big_n)  # ... and before it
+        lam_prev[1:] = lam
         u = self.upper
         ab = np.zeros((u + 1, big_n * n))
         for p in range(n):
             for c in range(p, n):
-                ab[u + p - c, c::n] = diag[:, p, c]
+                if single:
+                    row = self.hrh[p, c] + lam_next * pwp_k[p, c] + lam_prev * w_inv_k[p, c]
+                else:
+                    row = np.full(big_n, self.hrh[p, c])
+                    row[:-1] += lam * pwp_k[c, p]
+                    row[1:] += lam * w_inv_k[c, p]
+                ab[u + p - c, c::n] = row
             for c in range(n):
-                ab[n - 1 + p - c, n + c :: n] = off[:, p, c]
-        try:
-            chol = scipy.linalg.cholesky_banded(ab, lower=False, check_finite=False)
-        except np.linalg.LinAlgError:
+                ab[n - 1 + p - c, n + c :: n] = -lam * (pw_k[p, c] if single else pw_k[c, p])
+        chol, info = scipy.linalg.lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+        if info != 0:
             return math.inf, np.empty((0, n)), np.empty(0)
-        x = scipy.linalg.cho_solve_banded((chol, False), self.rhs, check_finite=False)
+        x, info = scipy.linalg.lapack.dpbtrs(chol, self.rhs, lower=0)
+        if info != 0:
+            return math.inf, np.empty((0, n)), np.empty(0)
         x = x.reshape(big_n, n)
         resid = self.y - x @ model.h.T
         if phi.shape[0] == 1:
@@ -211,12 +222,11 @@ class _Trajectory:
             w = x[1:] - np.einsum("kij,kj->ki", phi[modes], x[:-1])
             m2 = np.einsum("ki,kij,kj->k", w, w_inv[modes], w)
             log_det_q = float(np.sum(log_det_qb[modes]))
+        prior = float(np.dot(lam, m2)) + log_det_q - n * float(np.sum(np.log(lam)))
         nll = 0.5 * (
             np.einsum("ki,ij,kj->", resid, self.r_inv, resid)
             + big_n * self.log_det_2pi_r
-            + float(np.dot(lam, m2))
-            + log_det_q
-            - n * float(np.sum(np.log(lam)))
+            + prior
             + 2.0 * float(np.sum(np.log(chol[-1])))
             - big_n * n * math.log(2.0 * math.pi)
         )
@@ -240,25 +250,39 @@ def _initial_modes(model: PairModel, y: np.ndarray) -> np.ndarray:
 
 
 class _Objective:
-    """Marginal nll as a function of log q for the current weights and modes, memoised (the
-    trajectory and Mahalanobis sizes of every evaluated point are kept)."""
+    """Marginal nll as a function of log q, memoised (trajectory and Mahalanobis sizes of
+    every evaluated point are kept).
 
-    def __init__(self, system: _Trajectory) -> None:
+    Weights co-move with q: from the increments' sizes ``m2_ref`` measured at ``log_q_ref``,
+    an increment keeps its size while q changes, so its squared Mahalanobis size scales as
+    ``m2_ref q_ref / q`` and its weight is ``(nu + n)/(nu + m2_ref q_ref / q)``. (With fixed
+    weights, q could only creep down as the steps' weights caught up, ~40 rounds.) Without a
+    reference all weights are 1: the Gaussian model.
+    """
+
+    def __init__(self, system: _Trajectory, modes: np.ndarray) -> None:
         self.system = system
-        self.lam = np.ones(system.samples - 1)
-        self.modes = np.zeros(system.samples - 1, dtype=np.intp)
+        self.modes = modes
+        self.m2_ref: np.ndarray | None = None
+        self.log_q_ref = 0.0
         self.cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
 
-    def set(self, lam: np.ndarray, modes: np.ndarray) -> None:
-        self.lam, self.modes = lam, modes
+    def set(self, m2_ref: np.ndarray | None, log_q_ref: float, modes: np.ndarray) -> None:
+        self.m2_ref, self.log_q_ref, self.modes = m2_ref, log_q_ref, modes
         self.cache.clear()
+
+    def weights(self, log_q: float) -> np.ndarray:
+        if self.m2_ref is None:
+            return np.ones(self.system.samples - 1)
+        m2 = self.m2_ref * math.exp(self.log_q_ref - log_q)
+        return (JUMP_DOF + self.system.n) / (JUMP_DOF + m2)
 
     def __call__(self, log_q: float) -> float:
         return self.result(log_q)[0]
 
     def result(self, log_q: float) -> tuple[float, np.ndarray, np.ndarray]:
         if log_q not in self.cache:
-            self.cache[log_q] = self.system.evaluate(log_q, self.lam, self.modes)
+            self.cache[log_q] = self.system.evaluate(log_q, self.weights(log_q), self.modes)
         return self.cache[log_q]
 
 
@@ -333,39 +357,63 @@ def _initial_log_q(model: PairModel, y: np.ndarray, sigma: np.ndarray) -> float:
     return math.log(spread2 / duration**power)
 
 
-def _fit_gas_model(
-    model: PairModel, y: np.ndarray, sigma: np.ndarray
-) -> tuple[float, float, np.ndarray, np.ndarray, np.ndarray, int]:
-    """IRLS / marginal-likelihood alternation for one gas model: (nll, log q, lambda, modes,
-    states, iterations)."""
-    system = _Trajectory(model, y, sigma)
-    objective = _Objective(system)
-    big_n, n = y.shape[0], model.n
-    lam = np.ones(big_n - 1)
-    modes = _initial_modes(model, y)
-    objective.set(lam, modes)
-    log_q = _minimise_log_q(objective, _initial_log_q(model, y, sigma), 4.0)
-    nll, x, m2 = objective.result(log_q)
-    tol = 1e-3 * float(np.min(sigma))  # trajectory settled: changes far below the noise
-    iterations = 0
-    mode_passes = 0
-    for iterations in range(1, _MAX_OUTER + 1):  # noqa: B007 - count reported
-        if not math.isfinite(nll):
-            break
-        lam = (JUMP_DOF + n) / (JUMP_DOF + m2)
-        if model.hysteretic:
-            new_modes = _interval_modes(model, x)
-            if mode_passes < _MAX_MODE_PASSES and np.any(new_modes != modes):
-                modes = new_modes
-                mode_passes += 1
-        objective.set(lam, modes)
-        log_q = _minimise_log_q(objective, log_q, 1.0)
-        nll_new, x_new, m2 = objective.result(log_q)
-        change = float(np.sqrt(np.mean((x_new[:, 0] - x[:, 0]) ** 2)))
-        nll, x = nll_new, x_new
-        if change < tol:
-            break
-    return nll, log_q, lam, modes, x, iterations
+class _GasFit:
+    """The IRLS / marginal-likelihood alternation for one gas model, resumable.
+
+    Start: the Gaussian model's maximum-likelihood q (all weights 1). Each round: weights
+    from the increments of the current trajectory (co-moving with q, see :class:`_Objective`),
+    then one safeguarded Newton step on log q from a parabola through log q and log q +- h.
+    The round with the lowest nll is kept (the alternation is not a strict descent).
+    """
+
+    def __init__(self, model: PairModel, y: np.ndarray, sigma: np.ndarray) -> None:
+        self.model = model
+        self.objective = _Objective(_Trajectory(model, y, sigma), _initial_modes(model, y))
+        self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
+        self.log_q = _minimise_log_q(self.objective, _initial_log_q(model, y, sigma), 4.0)
+        self.nll, self.x, self.m2 = self.objective.result(self.log_q)
+        self.lam = self.objective.weights(self.log_q)
+        self.best = (self.nll, self.log_q, self.lam, self.objective.modes, self.x)
+        self.rounds = 0
+        self.mode_passes = 0
+        self.converged = not math.isfinite(self.nll)
+
+    def iterate(self, rounds: int) -> None:
+        objective, model = self.objective, self.model
+        for _ in range(rounds):
+            if self.converged:
+                return
+            self.rounds += 1
+            modes = objective.modes
+            if model.hysteretic and self.mode_passes < _MAX_MODE_PASSES:
+                new_modes = _interval_modes(model, self.x)
+                if np.any(new_modes != modes):
+                    modes = new_modes
+                    self.mode_passes += 1
+            objective.set(self.m2, self.log_q, modes)
+            centre = self.log_q
+            f0 = objective(centre)
+            f_minus, f_plus = objective(centre - _NEWTON_H), objective(centre + _NEWTON_H)
+            curvature = (f_plus - 2.0 * f0 + f_minus) / _NEWTON_H**2
+            slope = (f_plus - f_minus) / (2.0 * _NEWTON_H)
+            if curvature > 0.0 and math.isfinite(curvature):
+                move = float(np.clip(-slope / curvature, -_NEWTON_MAX, _NEWTON_MAX))
+            else:
+                move = -_NEWTON_MAX if slope > 0.0 else _NEWTON_MAX
+            candidates = [(f0, centre), (f_minus, centre - _NEWTON_H), (f_plus, centre + _NEWTON_H)]
+            candidates.append((objective(centre + move), centre + move))
+            nll, log_q = min(candidates)
+            nll, x, m2 = objective.result(log_q)
+            if not math.isfinite(nll):
+                self.converged = True
+                return
+            change = float(np.sqrt(np.mean((x[:, 0] - self.x[:, 0]) ** 2)))
+            self.nll, self.log_q, self.x, self.m2 = nll, log_q, x, m2
+            self.lam = objective.weights(log_q)
+            if nll < self.best[0]:
+                self.best = (nll, log_q, self.lam, objective.modes, x)
+            if change < self.tol and abs(log_q - centre) < _LOGQ_TOL:
+                self.converged = True
 
 
 def fit_smoother(
@@ -395,30 +443,31 @@ def fit_smoother(
     offset = float(np.mean(y))
     yc = y - offset  # states relative to the record's mean: better conditioned sums
     candidates = GAS_MODELS if gas == "auto" else (gas,)
-    best: SmootherFit | None = None
-    nll_by_gas: dict[str, float] = {}
+    fits = []
     for name in candidates:
         model = pair_model(
             taus[0], taus[1], float(ts), gas=name, taus1_cool=cool[0], taus2_cool=cool[1]
         )
-        nll, log_q, lam, modes, x, iterations = _fit_gas_model(model, yc, sigma)
-        nll_by_gas[name] = nll
-        if x.shape[0] and (best is None or nll < best.nll):
-            best = SmootherFit(
-                model=model,
-                q=math.exp(log_q),
-                weights=lam,
-                modes=modes,
-                states=x,
-                offset=offset,
-                nll=nll,
-                sigma=(float(sigma[0]), float(sigma[1])),
-                nll_by_gas=nll_by_gas,
-                iterations=iterations,
-            )
-    if best is None:
+        fit = _GasFit(model, yc, sigma)
+        fit.iterate(_SELECT_ROUNDS)
+        fits.append(fit)
+    chosen = min(fits, key=lambda f: f.best[0])
+    chosen.iterate(_MAX_ROUNDS - chosen.rounds)
+    nll, log_q, lam, modes, x = chosen.best
+    if not math.isfinite(nll):
         raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
-    return best
+    return SmootherFit(
+        model=chosen.model,
+        q=math.exp(log_q),
+        weights=lam,
+        modes=modes,
+        states=x,
+        offset=offset,
+        nll=nll,
+        sigma=(float(sigma[0]), float(sigma[1])),
+        nll_by_gas={f.model.gas: f.best[0] for f in fits},
+        iterations=chosen.rounds,
+    )
 
 
 # --------------------------------------------------------------------------------------------

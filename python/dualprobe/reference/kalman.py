@@ -32,10 +32,14 @@ interval (no ZOH), and the state is the gas at the sample instant itself, so the
 no half-sample shift. Per interval: ``x_k = Phi_m x_(k-1) + w_k``,
 ``w_k ~ N(0, q Qunit_m + Qfloor)``.
 
-``Qfloor = diag(0 for gas states, FLOOR_REL * sigma_i^2 for every stage of sensor i)`` is a
-model-error allowance (1e-4 sigma per sample in standard deviation): it bounds the condition
-number of the model (the exact Qunit is singular to rounding in the sensor directions) and
-changes estimates by far less than the noise.
+``Qfloor = diag(0 for gas states; for stage j of sensor i:
+FLOOR_REL sigma_i^2 + FLOOR_DYN q Qunit_0[0, 0] (Ts/tau_j)^2 / 12)`` with tau_j the stage's
+heating time constant. A model-error allowance: the first term (1e-4 sigma per sample) keeps the
+model proper when q -> 0, the second gives every stage the within-interval variance of a
+first-order stage driven by the gas. The exact Qunit is singular to rounding in the directions
+of the deeper stages (eigenvalues down to 1e-23 of the largest for two second-order sensors at
+100 Hz), which would make the smoother's normal equations numerically singular (condition
+number 1e15 measured; 1e11 with the floor); its effect on estimates is far below the noise.
 
 3. Gas steps: generalised likelihood-ratio (GLR) detection (Willsky & Jones 1976)
 --------------------------------------------------------------------------------
@@ -103,6 +107,7 @@ __all__ = [
 
 GAS_MODELS = ("rw", "irw")
 FLOOR_REL = 1e-8  # model-error variance per sample on each sensor stage, relative to sigma^2
+FLOOR_DYN = 1.0  # ... plus this share of a first-order stage's own within-interval variance
 GLR_WINDOW = 64  # candidate jump times kept; a 1 K step at 0.1 K noise is found within ~25
 GLR_FALSE_ALARM = 1e-6  # probability per sample of declaring a jump that did not happen
 
@@ -142,11 +147,15 @@ class PairModel:
     def hysteretic(self) -> bool:
         return self.phi.shape[0] > 1
 
-    def floor(self, sigma: Sequence[float]) -> np.ndarray:
-        """The model-error floor ``Qfloor`` for noise levels ``sigma`` (see docstring, 2)."""
+    def floor(self, sigma: Sequence[float], q: float) -> np.ndarray:
+        """The model-error floor ``Qfloor`` for noise levels ``sigma`` and gas intensity ``q``
+        (see docstring, 2)."""
+        taus = np.array(self.taus_heat[0] + self.taus_heat[1])
+        gas_step = q * float(self.q_unit[0, 0, 0])  # variance of one gas increment
         diag = np.zeros(self.n)
         diag[self.stage_state] = (
             FLOOR_REL * np.square(np.asarray(sigma, dtype=float))[self.stage_sensor]
+            + FLOOR_DYN * gas_step * (self.ts / taus) ** 2 / 12.0
         )
         return np.diag(diag)
 
@@ -363,7 +372,7 @@ def kalman_filter(
     n = model.n
     h = model.h
     r = np.diag(sig**2)
-    process = q * model.q_unit + model.floor(sig)  # (modes, n, n)
+    process = q * model.q_unit + model.floor(sig, q)  # (modes, n, n)
     identity = np.eye(n)
     threshold = glr_threshold(window)
     big_n = y.shape[0]
