@@ -1,0 +1,355 @@
+"""Gas-temperature reconstruction (issue 7): smoother, causal filter and exact inverse against
+the true gas temperature of exact simulations (dualprobe.simulate).
+
+RMSE ratios are "reconstruction RMSE / faster sensor's own RMSE" over the same samples, with
+the samples beside a gas jump excluded: those with a jump less than 2 sample intervals away
+(``PairRecording.jump_mask(margin=2)``), where the value at the instant depends on where
+inside the interval the jump fell.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+import pytest
+
+from dualprobe import reconstruction, simulate
+from dualprobe.reconstruction import estimate_noise_std, fit_smoother, reconstruct_pair
+from dualprobe.reference import kalman
+
+PT100_FAST = (12.48,)
+PT100_SLOW = (28.95,)
+PT100_FAST_2 = (12.30, 0.17)
+PT100_SLOW_2 = (25.72, 1.08)
+
+
+def _step_profile(
+    duration: float, rng: np.random.Generator, hold: tuple[float, float] = (40.0, 100.0)
+) -> simulate.GasProfile:
+    """Jumps of 100-300 K at uniformly random (off-grid) times, levels kept in 100-800 C."""
+    times: list[float] = []
+    levels = [300.0]
+    t = rng.uniform(*hold) / 2.0
+    while t < duration:
+        size = rng.uniform(100.0, 300.0)
+        up = levels[-1] + size <= 800.0 and (levels[-1] - size < 100.0 or rng.random() < 0.5)
+        levels.append(levels[-1] + size if up else levels[-1] - size)
+        times.append(t)
+        t += rng.uniform(*hold)
+    return simulate.multistep_profile(duration, levels=levels, step_times=times)
+
+
+def _pair(
+    profile: simulate.GasProfile,
+    taus1: tuple[float, ...],
+    taus2: tuple[float, ...],
+    ts: float,
+    duration: float,
+    noise: float,
+    rng: np.random.Generator,
+) -> simulate.PairRecording:
+    return simulate.simulate_pair(
+        profile,
+        simulate.SensorModel(taus1),
+        simulate.SensorModel(taus2),
+        ts=ts,
+        duration=duration,
+        noise_std=noise,
+        rng=rng,
+    )
+
+
+def _ratio(estimate: np.ndarray, rec: simulate.PairRecording) -> float:
+    keep = ~rec.jump_mask(margin=2) & np.isfinite(estimate)
+    err = math.sqrt(float(np.mean((estimate[keep] - rec.tg[keep]) ** 2)))
+    sensor = math.sqrt(float(np.mean((rec.t1[keep] - rec.tg[keep]) ** 2)))
+    return err / sensor
+
+
+@pytest.fixture(scope="module")
+def steps_10hz() -> simulate.PairRecording:
+    rng = np.random.default_rng(11)
+    return _pair(_step_profile(600.0, rng), PT100_FAST, PT100_SLOW, 0.1, 600.0, 0.1, rng)
+
+
+@pytest.fixture(scope="module")
+def band_10hz() -> simulate.PairRecording:
+    """Gas moving only within +/-5 K: band-limited to 0.1 Hz (the sensors' corner frequencies
+    are 0.013 and 0.0055 Hz, so most of the motion is attenuated 10-50x by the sensors)."""
+    unit = simulate.fluctuating_profile(600.0, mean=0.0, std=1.0, bandwidth=0.1, rng=12)
+    peak = float(np.max(np.abs(unit(np.linspace(0.0, 600.0, 60001)))))
+    # same draws scaled so that the extreme is 4.9 K: the whole +/-5 K range is used
+    profile = simulate.fluctuating_profile(600.0, mean=300.0, std=4.9 / peak, bandwidth=0.1, rng=12)
+    rec = _pair(profile, PT100_FAST, PT100_SLOW, 0.1, 600.0, 0.1, np.random.default_rng(13))
+    assert np.max(np.abs(rec.tg - 300.0)) <= 5.0  # the case asked for: within +/-5 K
+    return rec
+
+
+# --------------------------------------------------------------------------------------------
+# The acceptance cases of issue 7
+# --------------------------------------------------------------------------------------------
+
+
+def test_smoother_on_steps_is_far_better_than_the_sensor(
+    steps_10hz: simulate.PairRecording,
+) -> None:
+    rec = steps_10hz
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    ratio = _ratio(gas, rec)
+    print(f"smoother, steps, 10 Hz: RMSE ratio {ratio:.2e}")
+    assert gas.shape == rec.t1.shape and np.all(np.isfinite(gas))
+    assert ratio <= 0.06  # issue 7: at most 6 % of the faster sensor's RMSE
+    assert ratio <= 0.02  # ... and its aim of 2 % (measured 1e-4 to 1e-3 over 6 seeds)
+
+
+def test_smoother_on_small_band_limited_motion(band_10hz: simulate.PairRecording) -> None:
+    rec = band_10hz
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    ratio = _ratio(gas, rec)
+    print(f"smoother, +/-5 K band-limited, 10 Hz: RMSE ratio {ratio:.3f}")
+    assert ratio <= 0.35  # issue 7: at most 35 % (measured 0.13-0.15 over 6 seeds)
+
+
+def test_smoother_degrades_gracefully_with_wrong_time_constants(
+    steps_10hz: simulate.PairRecording, band_10hz: simulate.PairRecording
+) -> None:
+    # 3 % off in opposite directions: the worst case for the pair (the sensors disagree most)
+    wrong1 = (PT100_FAST[0] * 1.03,)
+    wrong2 = (PT100_SLOW[0] / 1.03,)
+    rec = steps_10hz
+    steps = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, wrong1, wrong2), rec)
+    rec = band_10hz
+    band = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, wrong1, wrong2), rec)
+    print(f"3 % wrong time constants: steps {steps:.3f}, band {band:.3f}")
+    # an exact inverse with tau 3 % off errs by 0.03 tau dT/dt, ~2-3 % of the sensor's RMSE
+    # after 100-300 K steps; the smoother stays within the issue's bounds for correct taus
+    assert steps <= 0.06
+    assert band <= 0.35
+
+
+def test_inverse_is_the_noisy_comparison(steps_10hz: simulate.PairRecording) -> None:
+    rec = steps_10hz
+    inverse = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW, mode="inverse")
+    smooth = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    assert np.isnan(inverse[0]) and np.isnan(inverse[-1])
+    assert np.all(np.isfinite(inverse[1:-1]))
+    # noise gain ~ tau/Ts: with 0.1 K noise the inverse errs by several K, 10-100x the smoother
+    assert _ratio(inverse, rec) > 10.0 * _ratio(smooth, rec)
+
+
+def test_filter_is_causal_and_better_than_the_sensor(steps_10hz: simulate.PairRecording) -> None:
+    rec = steps_10hz
+    full = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW, mode="filter")
+    ratio = _ratio(full, rec)
+    print(f"causal filter, steps, 10 Hz: RMSE ratio {ratio:.3f}")
+    assert ratio <= 0.2  # measured 0.02-0.13 over 6 seeds; a causal estimate lags each step
+    fit = fit_smoother(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    y = np.column_stack([rec.t1, rec.t2]) - fit.offset
+    whole = kalman.kalman_filter(y, fit.model, fit.background_q, fit.sigma)
+    head = kalman.kalman_filter(y[:2000], fit.model, fit.background_q, fit.sigma)
+    # causality: the first 2000 outputs do not change when later samples are cut off
+    np.testing.assert_allclose(head.gas, whole.gas[:2000], rtol=0.0, atol=1e-12)
+
+
+# --------------------------------------------------------------------------------------------
+# Second-order sensors (paper Tables I and II), 100 Hz
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_second_order_pair_at_100hz() -> None:
+    rng = np.random.default_rng(21)
+    duration = 150.0
+    rec = _pair(
+        _step_profile(duration, rng, hold=(30.0, 60.0)),
+        PT100_FAST_2,
+        PT100_SLOW_2,
+        0.01,
+        duration,
+        0.01,
+        rng,
+    )
+    second = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST_2, PT100_SLOW_2), rec)
+    first = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, (12.48,), (28.95,)), rec)
+    print(f"second-order sensors, 100 Hz: ratio {second:.2e} (first-order model: {first:.3f})")
+    assert second <= 0.02  # as good as the first-order pair's aim
+    # issue 6: the right model at most half the error of the first-order one on the same data
+    assert second <= 0.5 * first
+
+
+# --------------------------------------------------------------------------------------------
+# Hysteresis
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_hysteretic_sensors_use_their_cooling_time_constants() -> None:
+    rng = np.random.default_rng(31)
+    duration, ts = 600.0, 0.1
+    profile = _step_profile(duration, rng)
+    t = ts * np.arange(round(duration / ts) + 1)
+    heat, cool = (12.48, 28.95), (12.48 * 1.3, 28.95 * 1.3)  # cooling 30 % slower
+    t1 = simulate.simulate_hysteretic_sensor(profile, heat[0], cool[0], t)
+    t2 = simulate.simulate_hysteretic_sensor(profile, heat[1], cool[1], t)
+    t1 = t1 + 0.1 * rng.standard_normal(t.size)
+    t2 = t2 + 0.1 * rng.standard_normal(t.size)
+    rec = simulate.PairRecording(t=t, tg=profile(t), t1=t1, t2=t2, ts=ts, jumps=profile.jumps)
+    aware = reconstruct_pair(t1, t2, ts, heat[0], heat[1], taus1_cool=cool[0], taus2_cool=cool[1])
+    naive = reconstruct_pair(t1, t2, ts, heat[0], heat[1])
+    print(f"hysteretic pair: ratio {_ratio(aware, rec):.2e}, ignoring it {_ratio(naive, rec):.3f}")
+    assert _ratio(aware, rec) <= 0.06  # the issue's bound holds for hysteretic sensors too
+    assert _ratio(aware, rec) <= 0.2 * _ratio(naive, rec)  # modelling it is what does it
+
+
+# --------------------------------------------------------------------------------------------
+# Building blocks
+# --------------------------------------------------------------------------------------------
+
+
+def test_inverse_is_exact_on_difference_equation_data() -> None:
+    """On data obeying eq. 8 exactly (gas held over [k, k+1)), each sensor's ZOH inverse is
+    exact, so the output at t_k is the mean of the two held values around it."""
+    rng = np.random.default_rng(41)
+    held = 300.0 + np.cumsum(rng.normal(0.0, 2.0, 500))
+    t1, t2 = simulate.difference_equation_pair(held, 12.48, 28.95, 0.1)
+    out = reconstruct_pair(t1, t2, 0.1, 12.48, 28.95, mode="inverse", noise_std=0.1)
+    expected = 0.5 * (held[:-2] + held[1:-1])
+    np.testing.assert_allclose(out[1:-1], expected, rtol=0.0, atol=1e-8)  # float64 rounding
+
+
+def test_inverse_alignment_removes_the_half_sample_lag() -> None:
+    """On a ramp r, the ZOH value of an interval lags the instant by r Ts/2; the aligned
+    output errs only by O(r Ts^2 / tau)."""
+    ts, rate = 0.1, 2.0
+    profile = simulate.GasProfile.from_samples(np.array([0.0, 100.0]), np.array([0.0, 200.0]))
+    t = ts * np.arange(1001)
+    t1 = simulate.simulate_sensor(profile, simulate.SensorModel((12.48,)), t)
+    t2 = simulate.simulate_sensor(profile, simulate.SensorModel((28.95,)), t)
+    out = reconstruct_pair(t1, t2, ts, 12.48, 28.95, mode="inverse", noise_std=0.01)
+    late = slice(600, 999)  # the start-up transient of the ramp has died out
+    err = out[late] - profile(t[late])
+    assert np.max(np.abs(err)) < 0.01 * rate * ts / 2.0  # far below the half-sample lag
+
+
+def test_noise_level_is_estimated_from_the_signals(steps_10hz: simulate.PairRecording) -> None:
+    rec = steps_10hz
+    for signal in (rec.t1, rec.t2):
+        # 6000 samples: the MAD's standard error is ~1.3 %; 5 % covers it and the kinks
+        assert estimate_noise_std(signal) == pytest.approx(0.1, rel=0.05)
+    quiet = np.zeros(100)
+    assert estimate_noise_std(quiet) == 0.0
+
+
+def test_smoother_with_estimated_noise_matches_given_noise(
+    band_10hz: simulate.PairRecording,
+) -> None:
+    rec = band_10hz
+    estimated = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    given = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW, noise_std=0.1)
+    # a few % error in sigma moves q by the same; the gas moves far less than its own error
+    assert np.sqrt(np.mean((estimated - given) ** 2)) < 0.1 * np.sqrt(
+        np.mean((given - rec.tg) ** 2)
+    )
+
+
+def test_noise_free_data_are_reconstructed_almost_exactly() -> None:
+    rng = np.random.default_rng(51)
+    rec = _pair(_step_profile(300.0, rng), PT100_FAST, PT100_SLOW, 0.1, 300.0, 0.0, rng)
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    assert _ratio(gas, rec) < 1e-4  # noise floored at 1e-9 of the signal scale
+
+
+def test_banded_smoother_equals_rts_smoother() -> None:
+    """The block-tridiagonal MAP solve is the Rauch-Tung-Striebel smoother (Gaussian
+    increments, fixed q). RTS written here with plain matrices, nearly diffuse prior."""
+    rng = np.random.default_rng(61)
+    rec = _pair(_step_profile(120.0, rng), PT100_FAST, PT100_SLOW, 0.1, 120.0, 0.1, rng)
+    y = np.column_stack([rec.t1, rec.t2]) - 400.0
+    sigma = np.array([0.1, 0.1])
+    q = 5.0
+    for gas in ("rw", "irw"):
+        model = kalman.pair_model(PT100_FAST, PT100_SLOW, 0.1, gas=gas)
+        system = reconstruction._Trajectory(model, y, sigma)
+        lam = np.ones(y.shape[0] - 1)
+        nll, banded, _ = system.evaluate(math.log(q), lam, np.zeros(lam.size, dtype=np.intp))
+        phi = model.phi[0]
+        big_q = q * model.q_unit[0] + model.floor(sigma, q)
+        h, r = model.h, np.diag(sigma**2)
+        n = model.n
+        # prior 1000 K wide around the first samples: its pull is ~(posterior/prior var) 1e-6
+        # of a few K; a wider one loses digits to cancellation in the first update
+        x, p = np.full(n, float(np.mean(y[0]))), np.eye(n) * 1e6
+        if gas == "irw":
+            x[1] = 0.0
+        xf, pf, xp, pp = [], [], [], []
+        for k in range(y.shape[0]):
+            if k:
+                x, p = phi @ x, phi @ p @ phi.T + big_q
+            xp.append(x)
+            pp.append(p)
+            gain = p @ h.T @ np.linalg.inv(h @ p @ h.T + r)
+            x = x + gain @ (y[k] - h @ x)
+            p = (np.eye(n) - gain @ h) @ p
+            xf.append(x)
+            pf.append(p)
+        xs = [xf[-1]]
+        for k in range(y.shape[0] - 2, -1, -1):
+            c = pf[k] @ phi.T @ np.linalg.inv(pp[k + 1])
+            xs.insert(0, xf[k] + c @ (xs[0] - xp[k + 1]))
+        rts = np.array(xs)
+        # agreement limited by that prior's pull and by rounding in both (condition ~1e11)
+        print(gas, np.max(np.abs(banded[:, 0] - rts[:, 0])))
+        np.testing.assert_allclose(banded[:, 0], rts[:, 0], rtol=0.0, atol=1e-4)
+        assert math.isfinite(nll)
+
+
+@pytest.mark.slow
+def test_one_hour_record_is_fast() -> None:
+    rng = np.random.default_rng(71)
+    rec = _pair(_step_profile(3600.0, rng), PT100_FAST, PT100_SLOW, 0.1, 3600.0, 0.1, rng)
+    start = time.perf_counter()
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    elapsed = time.perf_counter() - start
+    print(f"one hour at 10 Hz (36001 samples): {elapsed:.1f} s, ratio {_ratio(gas, rec):.2e}")
+    assert _ratio(gas, rec) <= 0.02
+    # a few seconds on an idle core; generous because the test machine is shared
+    assert elapsed < 60.0
+
+
+# --------------------------------------------------------------------------------------------
+# Bad input
+# --------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"mode": "magic"}, "mode must be one of"),
+        ({"taus1": (1.0, 2.0, 3.0)}, "1 or 2 time constants"),
+        ({"taus1": -1.0}, "finite and > 0"),
+        ({"taus2": float("nan")}, "finite and > 0"),
+        ({"taus1_cool": (1.0, 2.0)}, "taus1_cool needs 1 time constants"),
+        ({"noise_std": -0.1}, "noise_std must be finite and >= 0"),
+        ({"ts": 0.0}, "ts must be finite and > 0"),
+    ],
+)
+def test_bad_arguments_raise_value_error(kwargs: dict[str, object], message: str) -> None:
+    t1 = np.linspace(0.0, 1.0, 50)
+    args: dict[str, object] = {"t1": t1, "t2": t1, "ts": 0.1, "taus1": 1.0, "taus2": 2.0}
+    args.update(kwargs)
+    with pytest.raises(ValueError, match=message):
+        reconstruct_pair(**args)  # type: ignore[arg-type]
+
+
+def test_bad_signals_raise_value_error() -> None:
+    good = np.linspace(0.0, 1.0, 50)
+    with pytest.raises(ValueError, match="equal length"):
+        reconstruct_pair(good, good[:-1], 0.1, 1.0, 2.0)
+    with pytest.raises(ValueError, match="need >= 8 samples"):
+        reconstruct_pair(good[:5], good[:5], 0.1, 1.0, 2.0)
+    bad = good.copy()
+    bad[7] = np.inf
+    with pytest.raises(ValueError, match="t2 is not finite at sample 7"):
+        reconstruct_pair(good, bad, 0.1, 1.0, 2.0)
