@@ -104,8 +104,13 @@ EivSolution<Scalar, N> solve_gtls(const Eigen::Matrix<Scalar, N, N>& scatter,
     out.status = Status::invalid_argument;
     return out;
   }
-  Matrix whitened = llt.matrixL().solve(scatter);
-  whitened = llt.matrixL().solve(whitened.transpose()).eval();
+  // Column by column: a matrix right-hand side instantiates Eigen's blocked triangular solver,
+  // which references malloc/free and thread-safe statics (fails the firmware's heap guard).
+  Matrix half;
+  for (int j = 0; j < N; ++j) half.col(j) = llt.matrixL().solve(scatter.col(j));
+  const Matrix half_t = half.transpose();
+  Matrix whitened;
+  for (int j = 0; j < N; ++j) whitened.col(j) = llt.matrixL().solve(half_t.col(j));
   // Symmetrise: rounding in the two triangular solves breaks exact symmetry.
   const Matrix symmetric = Scalar(0.5) * (whitened + whitened.transpose());
   Eigen::SelfAdjointEigenSolver<Matrix> eig(symmetric);

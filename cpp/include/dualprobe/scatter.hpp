@@ -23,7 +23,10 @@ class SymmetricScatter {
   // S <- lambda S + z z^T ; weight <- lambda weight + 1 (the effective number of rows).
   void add(const Vector& z, Scalar lambda) noexcept {
     int index = 0;
+    // Fully unrolled: at -O2 GCC keeps the triangular loop nest (~2x the M4F instructions).
+#pragma GCC unroll 16
     for (int row = 0; row < N; ++row) {
+#pragma GCC unroll 16
       for (int col = row; col < N; ++col, ++index) {
         packed_[index] = lambda * packed_[index] + z[row] * z[col];
       }
@@ -34,7 +37,10 @@ class SymmetricScatter {
   // Without forgetting the multiply by lambda is skipped (the ECU's common case).
   void add(const Vector& z) noexcept {
     int index = 0;
+    // Fully unrolled: at -O2 GCC keeps the triangular loop nest (~2x the M4F instructions).
+#pragma GCC unroll 16
     for (int row = 0; row < N; ++row) {
+#pragma GCC unroll 16
       for (int col = row; col < N; ++col, ++index) {
         packed_[index] += z[row] * z[col];
       }
