@@ -6,7 +6,7 @@ VENV := .venv
 VPY := $(VENV)/bin/python
 CMAKE := $(VENV)/bin/cmake
 CTEST := $(VENV)/bin/ctest
-DEB_PACKAGES := g++ libeigen3-dev libgtest-dev clang gcc-arm-none-eabi \
+DEB_PACKAGES := make g++ libeigen3-dev libgtest-dev clang gcc-arm-none-eabi \
 	libstdc++-arm-none-eabi-newlib libnewlib-arm-none-eabi qemu-system-arm
 STAMP := build/.stamps
 
@@ -39,7 +39,7 @@ $(STAMP)/venv: pyproject.toml CMakeLists.txt
 	$(VPY) -m pip install -q --upgrade pip
 	$(VPY) -m pip install -q "scikit-build-core>=0.10" "pybind11>=3" ninja "cmake>=3.20"
 	$(VPY) -m pip install -q --no-build-isolation -e ".[test]"
-	touch $@
+	touch $@ $(STAMP)/extension
 
 # The extension is rebuilt whenever the core or the bindings change.
 CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp)
