@@ -8,22 +8,24 @@ the gas state is the gas temperature AT each sample instant (no half-sample shif
 ``mode="smoother"`` (offline, default): the maximum a-posteriori gas trajectory given all
 samples, with Student-t (nu = 1) gas increments so that a step between two samples costs
 ~log(size) instead of size^2 and stays sharp, while slow motion is smoothed as by a Gaussian
-(RTS) smoother. Solved as one banded least-squares problem per iteration (the normal equations
-of the whole trajectory are block-tridiagonal: ``scipy.linalg.cholesky_banded``), with the
-Student-t prior by iteratively reweighted least squares (weights ``(nu + n)/(nu + m_k^2)``,
+(RTS) smoother. Solved as one banded least-squares problem per evaluation (the normal equations
+of the whole trajectory are block-tridiagonal, bandwidth 2n - 1: LAPACK ``dpbtrf``/``dpbtrs``),
+the Student-t prior by iteratively reweighted least squares (weights ``(nu + n)/(nu + m_k^2)``,
 m_k^2 the Mahalanobis size of increment k). Chosen from the data, nothing tuned by hand:
 
 * the noise level of each sensor, when not given: MAD of its third differences;
-* the gas intensity q: maximum of the Gaussian marginal likelihood of the samples given the
-  current weights (exact, from the same banded Cholesky: ``-log p(y) = J(x_hat) +
-  1/2 log det A - N n/2 log 2 pi``), alternated with the weights until the trajectory settles;
-* rw or irw: the one with the higher marginal likelihood at its optimum (steps and plateaus
-  favour rw, smooth motion irw).
+* the gas intensity q: start at the maximum of the Gaussian model's marginal likelihood
+  (exact, from the same banded Cholesky: ``-log p(y) = J(x_hat) + 1/2 log det A -
+  N n/2 log 2 pi``); then rounds of (weights from the current increments, one safeguarded
+  Newton step on log q of that likelihood with the weights co-moving with q) until the
+  trajectory changes by less than 1 % of the noise (at most 25 rounds; the best round kept);
+* rw or irw: each gets 3 rounds, the one with the higher likelihood is finished (steps and
+  plateaus favour rw, ramps and smooth motion irw).
 
 ``mode="filter"`` (causal, as on the ECU): the Kalman filter of
-:func:`dualprobe.reference.kalman.kalman_filter` with per-step jump adaptation, run with the gas
-model and the background intensity (q / median weight) that the smoother identified on the
-record (on an ECU these are configuration constants).
+:func:`dualprobe.reference.kalman.kalman_filter` with GLR jump detection, run with the gas model
+and the background intensity (q / median weight) that the smoother identified on the record
+(on an ECU these are configuration constants).
 
 ``mode="inverse"``: the paper's exact inverse (design 1.3) of each sensor, generalised to the
 sensor's stages and aligned to the sample instants (mean of the two ZOH values around t_k),
