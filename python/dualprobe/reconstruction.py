@@ -67,6 +67,9 @@ _NEWTON_H = 0.2  # log q step of the parabola (the nll is smooth in log q on thi
 _NEWTON_MAX = 3.0  # largest log q move per round
 _MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
 _LOGQ_TOL = 0.1  # 10 % in q: the reconstruction changes by a fraction of that
+_UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
+_WANDER_MIN = 1e-3  # smallest q: the gas wanders by 1e-3 sigma over the whole record
+_STEP_MAX = 1e3  # largest q: one step of the gas moves it by 1e3 times the signals' span
 
 
 def estimate_noise_std(x: np.ndarray, order: int = _DIFF_ORDER) -> float:
@@ -280,7 +283,8 @@ class _Objective:
         return (JUMP_DOF + self.system.n) / (JUMP_DOF + m2)
 
     def __call__(self, log_q: float) -> float:
-        return self.result(log_q)[0]
+        nll = self.result(log_q)[0]
+        return nll if math.isfinite(nll) else _UNUSABLE  # optimisers need finite numbers
 
     def result(self, log_q: float) -> tuple[float, np.ndarray, np.ndarray]:
         if log_q not in self.cache:
@@ -288,32 +292,40 @@ class _Objective:
         return self.cache[log_q]
 
 
-def _minimise_log_q(fun: _Objective, start: float, step: float) -> float:
-    """Bracket the minimum of nll(log q) by walking from ``start`` in doubling steps, then
-    refine with bounded Brent to _LOGQ_TOL."""
+def _minimise_log_q(
+    fun: _Objective, start: float, step: float, bounds: tuple[float, float]
+) -> float:
+    """Bracket the minimum of nll(log q) within ``bounds`` by walking from ``start`` in
+    doubling steps, then refine with bounded Brent to _LOGQ_TOL."""
+    low, high = bounds
+    start = min(max(start, low), high)
     f0 = fun(start)
-    left, right = start - step, start + step
+    left, right = max(start - step, low), min(start + step, high)
     f_left, f_right = fun(left), fun(right)
     if f_left < f0 and f_left <= f_right:
         mid, f_mid, hi = left, f_left, start
-        while True:
+        lo = left
+        while lo > low:
             step *= 2.0
-            lo = mid - step
+            lo = max(mid - step, low)
             f_lo = fun(lo)
-            if f_lo >= f_mid or step > 200.0:
+            if f_lo >= f_mid:
                 break
             hi, mid, f_mid = mid, lo, f_lo
     elif f_right < f0:
         mid, f_mid, lo = right, f_right, start
-        while True:
+        hi = right
+        while hi < high:
             step *= 2.0
-            hi = mid + step
+            hi = min(mid + step, high)
             f_hi = fun(hi)
-            if f_hi >= f_mid or step > 200.0:
+            if f_hi >= f_mid:
                 break
             lo, mid, f_mid = mid, hi, f_hi
     else:
         lo, mid, hi = left, start, right
+    if hi - lo <= _LOGQ_TOL:
+        return mid
     result = scipy.optimize.minimize_scalar(
         fun, bounds=(lo, hi), method="bounded", options={"xatol": _LOGQ_TOL}
     )
@@ -350,13 +362,18 @@ class SmootherFit:
         return self.q / float(np.median(self.weights))
 
 
-def _initial_log_q(model: PairModel, y: np.ndarray, sigma: np.ndarray) -> float:
-    """A scale to start the search from: the gas wandering over the record by the signals'
-    spread (rw: K^2/s, irw: K^2/s^3)."""
+def _log_q_range(model: PairModel, y: np.ndarray, sigma: np.ndarray) -> tuple[float, ...]:
+    """(lowest, start, highest) log q searched (rw: K^2/s, irw: K^2/s^3). Below the lowest
+    the gas is constant for all the data can tell, above the highest it jumps by 1000x the
+    signals' span every sample; the start lets it wander over the record by the signals'
+    spread."""
     duration = model.ts * (y.shape[0] - 1)
-    spread2 = float(np.var(y[:, 0])) + float(np.sum(sigma**2))
     power = 1 if model.gas == "rw" else 3
-    return math.log(spread2 / duration**power)
+    span = float(np.ptp(y)) + float(np.max(sigma))
+    lowest = math.log((_WANDER_MIN * float(np.min(sigma))) ** 2 / duration**power)
+    highest = math.log((_STEP_MAX * span) ** 2 / model.ts**power)
+    spread2 = float(np.var(y[:, 0])) + float(np.sum(sigma**2))
+    return lowest, math.log(spread2 / duration**power), highest
 
 
 class _GasFit:
@@ -372,7 +389,9 @@ class _GasFit:
         self.model = model
         self.objective = _Objective(_Trajectory(model, y, sigma), _initial_modes(model, y))
         self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
-        self.log_q = _minimise_log_q(self.objective, _initial_log_q(model, y, sigma), 4.0)
+        lowest, start, highest = _log_q_range(model, y, sigma)
+        self.bounds = (lowest, highest)
+        self.log_q = _minimise_log_q(self.objective, start, 4.0, self.bounds)
         self.nll, self.x, self.m2 = self.objective.result(self.log_q)
         self.lam = self.objective.weights(self.log_q)
         self.best = (self.nll, self.log_q, self.lam, self.objective.modes, self.x)
@@ -403,7 +422,8 @@ class _GasFit:
             else:
                 move = -_NEWTON_MAX if slope > 0.0 else _NEWTON_MAX
             candidates = [(f0, centre), (f_minus, centre - _NEWTON_H), (f_plus, centre + _NEWTON_H)]
-            candidates.append((objective(centre + move), centre + move))
+            target = min(max(centre + move, self.bounds[0]), self.bounds[1])
+            candidates.append((objective(target), target))
             nll, log_q = min(candidates)
             nll, x, m2 = objective.result(log_q)
             if not math.isfinite(nll):

@@ -317,6 +317,50 @@ def test_one_hour_record_is_fast() -> None:
     assert elapsed < 60.0
 
 
+@pytest.mark.parametrize("mode", ["smoother", "filter", "inverse"])
+def test_constant_signals_give_the_constant(mode: str) -> None:
+    flat = np.full(200, 300.0)  # no excitation at all, no noise: q at its floor, no warning
+    gas = reconstruct_pair(flat, flat, 0.1, 12.48, 28.95, mode=mode)
+    np.testing.assert_allclose(gas[1:-1], 300.0, rtol=0.0, atol=1e-9)
+
+
+def test_thermocouple_pair_at_1khz() -> None:
+    """Other sensors, rate and gas: 20/80 ms beads, 1 kHz, 5 Hz band-limited gas."""
+    profile = simulate.fluctuating_profile(10.0, mean=550.0, std=10.0, bandwidth=5.0, rng=81)
+    rec = simulate.simulate_pair(
+        profile,
+        simulate.THERMOCOUPLE_20MS,
+        simulate.THERMOCOUPLE_80MS,
+        ts=0.001,
+        duration=10.0,
+        noise_std=0.05,
+        rng=82,
+    )
+    smooth = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, 0.02, 0.08), rec)
+    causal = _ratio(reconstruct_pair(rec.t1, rec.t2, rec.ts, 0.02, 0.08, mode="filter"), rec)
+    print(f"thermocouples, 1 kHz: smoother {smooth:.3f}, filter {causal:.3f}")
+    assert smooth <= 0.05  # measured 0.012: the beads are only 20-80 samples slow
+    assert causal <= 0.15  # measured 0.06
+
+
+def test_quantised_noise_free_data() -> None:
+    rng = np.random.default_rng(91)
+    profile = _step_profile(300.0, rng)
+    rec = simulate.simulate_pair(
+        profile,
+        simulate.SensorModel(PT100_FAST),
+        simulate.SensorModel(PT100_SLOW),
+        ts=0.1,
+        duration=300.0,
+        quantisation=0.01,
+        rng=rng,
+    )
+    # ADC steps of 0.01 K act as uniform noise of 0.01/sqrt(12) K
+    assert estimate_noise_std(rec.t1) == pytest.approx(0.01 / math.sqrt(12.0), rel=0.2)
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
+    assert _ratio(gas, rec) <= 0.02  # measured 2e-5
+
+
 # --------------------------------------------------------------------------------------------
 # Bad input
 # --------------------------------------------------------------------------------------------
