@@ -5,7 +5,8 @@ runs the state-variable-filter (SVF) cross-relation estimator of
 :mod:`dualprobe.reference.svf` (whose docstring has the maths and the measurements) with
 
 * the noise level of each sensor estimated from its own signal (:func:`estimate_noise_std`)
-  unless given, and floored at 1e-6 of the signal's standard deviation (exact data);
+  unless given, and floored at 1e-6 of the signal's standard deviation and at the
+  first-order-hold error of the signal's kinks (:func:`discretisation_noise_std`; exact data);
 * the filter time constant ``tf`` chosen from the data: a geometric scan of tf over the
   record's time scales (first-order fits), then the fixed point ``tf = kappa tau_fast(tf)``
   (kappa = 0.5 for order 1 and the hysteresis split, 0.25 for order 2);
@@ -20,7 +21,14 @@ runs the state-variable-filter (SVF) cross-relation estimator of
   every gamma). A common pole filters the gas temperature before both sensors and cannot be
   seen, so the reduced-order fit (the distinct poles R1, R2) is reported with
   ``identifiability["identifiable"] = False`` and a message; k-1 >= order means nothing is
-  identifiable (identical sensors or no excitation).
+  identifiable (identical sensors or no excitation);
+* for order 2, the order of each sensor: a sensor whose second time constant is ~0 (truly
+  first order, or far below what the sample rate and noise resolve) is fitted as first order
+  when that fits as well by the same test (``identifiability["sensor_orders"]`` and
+  ``["notes"]``). Otherwise its free d_i absorbs noise and discretisation error, and a first-
+  order sensor even admits a near-null common factor that put a spurious 0.05 s pole on both
+  sensors in the paper's noise-free study A (Ts = 0.1 s); with the selection, study A gives
+  sensor 1 = 12.4797-12.4800 s alone and sensor 2's a_p to 4 % at 0.001 s, 0.1 % from 0.1 s.
 
 ``method="ls" | "tls" | "gtls"`` runs the paper's difference-equation method (design.md 1.2)
 through the C++ core (or the NumPy reference if the core is not built).
@@ -35,6 +43,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import scipy.ndimage
 
 from dualprobe.reference import svf
 
@@ -44,6 +53,7 @@ __all__ = [
     "PairEstimate",
     "characterise_pair",
     "compare_methods",
+    "discretisation_noise_std",
     "estimate_noise_std",
 ]
 
@@ -58,6 +68,8 @@ RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's
 DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification
 _NOISE_DIFF_ORDER = 4  # fourth differences: the signal's share is ~(w Ts)^4, noise gain sqrt(70)
 _MIN_SAMPLES = 20
+_KINK_MEDIAN_WINDOW = 11  # running median of the second differences: kinks are 2 samples wide
+_KINK_THRESHOLD = 8.0  # kink spikes: beyond 8 noise standard deviations of a second difference
 
 
 class _InputError(ValueError):
@@ -117,6 +129,27 @@ def estimate_noise_std(x: np.ndarray) -> float:
     if mad > 0.0:
         return 1.482602218505602 * mad / gain  # MAD -> Gaussian standard deviation
     return float(np.sqrt(np.mean(d * d))) / gain
+
+
+def discretisation_noise_std(x: np.ndarray, noise_std: float = 0.0) -> float:
+    """White noise equivalent to the first-order-hold error at the kinks of a sampled signal.
+
+    The SVF sees the straight-line interpolation of the samples. On smooth stretches its error
+    acts as the common operator ``1 - (Ts s)^2/12`` on both sensors and cancels from the
+    cross-relation; at a kink (slope jump D, a gas step seen by a first-order sensor) it leaves
+    an impulse of area up to ``Ts^2 D / 12``. The kink shows as a spike of about ``Ts D`` in the
+    second differences above their running median (``r``), so the impulses' energy ``sum A^2``
+    equals that of white noise of variance ``sum r^2 / (144 N)`` over the N samples. Only
+    spikes above 8 noise standard deviations count (below, the noise hides them). Measured on
+    the paper's noise-free study A (Ts = 0.1 s, 100 K step on the grid): 1.5e-3 K for the
+    first-order sensor, where the fits' residuals then sit at 0.001-0.6 of this noise band.
+    """
+    d = np.diff(np.asarray(x, dtype=float), 2)
+    if d.size < _KINK_MEDIAN_WINDOW:
+        return 0.0
+    spikes = d - scipy.ndimage.median_filter(d, size=_KINK_MEDIAN_WINDOW, mode="nearest")
+    spikes = spikes[np.abs(spikes) > _KINK_THRESHOLD * math.sqrt(6.0) * noise_std]
+    return math.sqrt(float(np.sum(spikes * spikes)) / (144.0 * (d.size + 2)))
 
 
 # --------------------------------------------------------------------------------------------
@@ -292,6 +325,57 @@ def _beta(taus: tuple[tuple[float, ...], tuple[float, ...]], ts: float) -> float
     return b2 / b1
 
 
+@dataclass(frozen=True)
+class _SubModelFit:
+    """GTLS fit of the order-2 relation with some d_i fixed at zero."""
+
+    theta: np.ndarray  # full layout, zeros where d_i is dropped
+    eigenvalues: np.ndarray
+    polynomials: tuple[tuple[float, ...], tuple[float, ...]]
+    time_constants: tuple[tuple[float, ...], tuple[float, ...]]
+    feasible: bool
+
+    @property
+    def mu(self) -> float:
+        return float(self.eigenvalues[0])
+
+
+def _sensor_order_fits(
+    t1: np.ndarray, t2: np.ndarray, ts: float, tf: float, sigma: tuple[float, float],
+    static: str,
+) -> dict[tuple[int, int], _SubModelFit]:
+    """Order-2 SVF scatter (as :func:`dualprobe.reference.svf.estimate`) solved with the
+    sensors' orders (2, 2), (1, 2), (2, 1) and (1, 1): the d_i columns (1 and 3 of the
+    layout) are dropped from the scatter and the noise covariance."""
+    disc = svf.discretise_filter(tf, ts, 3)
+    cols = svf.regression_columns(t1, t2, disc, 2, None, static)
+    scatter = svf.projected_scatter(cols, disc, 0, static == "affine")
+    cov = svf.noise_covariance(disc, 2, sigma[0], sigma[1], static) * cols.shape[1]
+    size = scatter.shape[0]
+    out: dict[tuple[int, int], _SubModelFit] = {}
+    for orders in ((2, 2), (1, 2), (2, 1), (1, 1)):
+        keep = [i for i in range(size) if not (i == 1 and orders[0] == 1)
+                and not (i == 3 and orders[1] == 1)]
+        sub, mu, _ = svf.solve_gtls(scatter[np.ix_(keep, keep)], cov[np.ix_(keep, keep)])
+        theta = np.zeros(size)
+        theta[keep] = sub
+        gain = float(theta[4]) if static == "affine" else 1.0
+        polys = []
+        taus = []
+        for i in range(2):
+            c = float(theta[2 * i]) * tf / gain ** i
+            d = float(theta[2 * i + 1]) * tf**2 / gain ** i
+            if orders[i] == 1:
+                polys.append((c,))
+                taus.append((c,) if math.isfinite(c) and c > 0.0 else (float("nan"),))
+            else:
+                polys.append((c, d))
+                taus.append(svf.polynomial_time_constants((c, d)))
+        feasible = gain > 0.0 and all(math.isfinite(t) and t > 0.0 for ts_ in taus for t in ts_)
+        out[orders] = _SubModelFit(theta, mu, (polys[0], polys[1]), (taus[0], taus[1]), feasible)
+    return out
+
+
 @dataclass
 class _SvfRun:
     """One SVF characterisation: the data, the settings and the growing details."""
@@ -365,9 +449,83 @@ class _SvfRun:
                 f"the model leaves {float(mu[0]):.3g} times the residual that sensor noise "
                 "explains: the sensors may be of higher order, hysteretic, nonlinear or see "
                 "different gas temperatures")
+        if self.order == 2 and not self.hysteresis and k <= 2:
+            chosen = self.select_sensor_orders(res, static, n_eff, identifiability)
+            if chosen is not None:
+                return self.finish(chosen, chosen.order, identifiability)
         if k > 1:
             return self.reduced(res, static, k, identifiability)
         return self.finish(res, self.order, identifiability)
+
+    def select_sensor_orders(self, res: svf.SvfResult, static: str, n_eff: float,
+                             identifiability: dict[str, object]) -> svf.SvfResult | None:
+        """Drop a sensor's second-order coefficient d_i when the data do not need it.
+
+        A sensor whose second time constant is ~0 (a first-order sensor, or one far below
+        what the sample rate and the noise resolve) leaves d_i ~ 0 in the relation. The free
+        coefficient then absorbs noise and discretisation error: negative, complex or spurious
+        small poles. If the sensor is exactly first order, ``(1 + g s) P1 T1 = (1 + g s) P2 T2``
+        even fits for any g up to P2's tiny s^3 term, a near-null direction that adds a
+        spurious common pole g to both sensors' fast poles (paper's study A, noise-free,
+        a_p = 0.001 s: 0.051 s on both instead of 0 and 0.001 s). Sub-models without d1, d2 or
+        both are solved on the same scatter; one is kept when its smallest generalised
+        eigenvalue exceeds the full model's by less than ``GAP_THRESHOLD`` noise standard
+        deviations (the test of the identifiability check), the least costly first.
+
+        Returns the chosen fit, or None when the full model is degenerate (two-dimensional
+        null space) and no sub-model with one first-order sensor removes the degeneracy:
+        then a first-order pair fits as well, i.e. both sensors are first order or share a
+        pole, which :meth:`reduced` reports.
+        """
+        fits = _sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
+        full = fits[(2, 2)]
+        reference = max(full.mu, 1.0)
+        statistics = {key: (fit.mu - full.mu) / reference * math.sqrt(n_eff / 2.0)
+                      for key, fit in fits.items()}
+        self.details["sensor_order_statistics"] = {
+            f"{key[0]},{key[1]}": statistics[key] for key in fits if key != (2, 2)}
+        degenerate = int(identifiability["null_dimension"]) > 1  # type: ignore[call-overload]
+        if degenerate and statistics[(1, 1)] < GAP_THRESHOLD:
+            return None
+        chosen = (2, 2)
+        for key in sorted(((1, 2), (2, 1)), key=lambda key: statistics[key]):
+            if not (statistics[key] < GAP_THRESHOLD and fits[key].feasible):
+                continue
+            if degenerate and _gap_statistics(fits[key].eigenvalues, n_eff)[1] < GAP_THRESHOLD:
+                continue  # the sub-model is degenerate too
+            chosen = key
+            break
+        if degenerate and chosen == (2, 2):
+            return None
+        if chosen != (2, 2) and statistics[(1, 1)] < GAP_THRESHOLD and fits[(1, 1)].feasible:
+            chosen = (1, 1)
+        identifiability["sensor_orders"] = list(chosen)
+        if chosen == (2, 2):
+            return res
+        if degenerate:
+            identifiability.update(identifiable=True, null_dimension=1,
+                                   full_model_null_dimension=2)
+        notes = []
+        for i, key in enumerate(((1, 2), (2, 1))):
+            if chosen[i] == 1:
+                statistic = statistics[(1, 1) if chosen == (1, 1) else key]
+                notes.append(
+                    f"sensor {i + 1}: second time constant not resolved (a first-order model "
+                    f"of this sensor fits as well: statistic {statistic:.3g} < "
+                    f"{GAP_THRESHOLD:g}); reported as first order")
+        if chosen in ((1, 2), (2, 1)):
+            other = 2 if chosen == (1, 2) else 1
+            notes.append(
+                f"a fast pole common to both sensors would not be seen: if sensor {3 - other} "
+                f"has one too, sensor {other}'s reported fast time constant is the difference")
+        identifiability["notes"] = notes
+        fit = fits[chosen]
+        self.details.update(theta=fit.theta.tolist(), eigenvalues=fit.eigenvalues.tolist(),
+                            residual_to_noise=float(fit.mu))
+        return dataclasses.replace(
+            res, order=max(chosen), theta=fit.theta, time_constants=fit.time_constants,
+            polynomials=fit.polynomials, eigenvalues=fit.eigenvalues,
+        )
 
     def select_static(self) -> tuple[svf.SvfResult | None, str]:
         """Fit the unit-gain model and, for "auto", the affine one; keep the affine model only
@@ -452,10 +610,11 @@ class _SvfRun:
             distinct_time_constants=[list(low.time_constants[0]), list(low.time_constants[1])],
             message=(
                 f"the two sensors (nearly) share {shared} (gap statistic "
-                f"{float(identifiability['gap_statistic']):.3g} < {GAP_THRESHOLD:g}): a pole "
-                "common to both acts like a filter on the gas temperature and cannot be seen "
-                "from the two signals; only the distinct time constants are identifiable and "
-                f"reported (order {reduced_order})"
+                f"{float(identifiability['gap_statistic']):.3g} < {GAP_THRESHOLD:g}), or "
+                f"are both of order {reduced_order} within the noise: a pole common to both "
+                "acts like a filter on the gas temperature and cannot be seen from the two "
+                "signals; only the distinct time constants are identifiable and reported "
+                f"(order {reduced_order})"
             ),
         )
         self.details["requested_order"] = self.order
@@ -475,9 +634,13 @@ def _svf_estimate(
 ) -> PairEstimate:
     details: dict[str, object] = {"noise_std_source": sigma_source}
     # Resolution floor: nothing below a part per million of a signal's variation is resolved
-    # (FOH interpolation and rounding errors of exact data sit there), so noise-free records
-    # keep a meaningful noise band for the identifiability test.
-    floor = (RESOLUTION_FLOOR * float(np.std(t1)), RESOLUTION_FLOOR * float(np.std(t2)))
+    # (rounding errors of exact data sit there), nor below the discretisation error at the
+    # signals' kinks, so noise-free records keep a meaningful noise band for the
+    # identifiability test and the order selection.
+    floor = tuple(
+        max(RESOLUTION_FLOOR * float(np.std(x)), discretisation_noise_std(x, s))
+        for x, s in ((t1, sigma[0]), (t2, sigma[1]))
+    )
     used = (max(sigma[0], floor[0]), max(sigma[1], floor[1]))
     if used != sigma:
         details["noise_std_used"] = used
