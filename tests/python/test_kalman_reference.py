@@ -87,6 +87,7 @@ def _textbook(
         loglik += -0.5 * (e @ s_inv @ e) - 0.5 * math.log(np.linalg.det(2.0 * math.pi * s))
         if detect_jumps and k > 0:
             best, best_stat = None, threshold
+            best_coef, best_weight = np.zeros(2), np.zeros((2, 2))
             for cand in candidates:
                 r0, r1 = h @ cand["mu0"], h @ cand["mu1"]
                 cand["a"] = cand["a"] + np.array([r0 @ s_inv @ e, r1 @ s_inv @ e])
@@ -95,16 +96,30 @@ def _textbook(
                 )
                 cand["mu0"] = cand["mu0"] - gain @ r0
                 cand["mu1"] = cand["mu1"] - gain @ r1
-                c = cand["c"]
+                c, a = cand["c"], cand["a"]
+                options = []  # (statistic, [alpha, beta], inverse information)
+                if c[0, 0] > 0.0:
+                    options.append(
+                        (a[0] ** 2 / c[0, 0], [a[0] / c[0, 0], 0.0], [[1 / c[0, 0], 0], [0, 0]])
+                    )
+                if c[1, 1] > 0.0:
+                    options.append(
+                        (a[1] ** 2 / c[1, 1], [0.0, a[1] / c[1, 1]], [[0, 0], [0, 1 / c[1, 1]]])
+                    )
                 if np.linalg.det(c) > kalman.GLR_SINGULAR * np.trace(c) ** 2:
-                    stat = cand["a"] @ np.linalg.inv(c) @ cand["a"]
+                    both = np.linalg.inv(c) @ a
+                    if both[0] * both[1] >= 0.0:  # the jump inside its interval
+                        options = [(a @ both, list(both), np.linalg.inv(c))]
+                if options:
+                    stat, coef, weight = max(options, key=lambda o: o[0])
                     if stat > best_stat:
                         best, best_stat = cand, stat
+                        best_coef, best_weight = np.array(coef), np.array(weight, dtype=float)
             if best is not None:
-                alpha, beta = np.linalg.inv(best["c"]) @ best["a"]
+                alpha, beta = best_coef
                 x = x + alpha * best["mu0"] + beta * best["mu1"]
-                both = np.array([best["mu0"], best["mu1"]])
-                p = p + both.T @ np.linalg.inv(best["c"]) @ both
+                effects = np.array([best["mu0"], best["mu1"]])
+                p = p + effects.T @ best_weight @ effects
                 jumps.append((k, best["k"], alpha + beta))
                 candidates = []
         out[k] = x

@@ -153,6 +153,33 @@ def test_filter_is_causal_and_better_than_the_sensor(steps_10hz: simulate.PairRe
     np.testing.assert_allclose(head.gas, whole.gas[:2000], rtol=0.0, atol=1e-12)
 
 
+def test_filter_stays_bounded_with_a_wrong_model() -> None:
+    """Cooling time constants 14-17 % off (the sensors are not hysteretic at all): the GLR
+    keeps 'finding' jumps that explain the model error; it must not run away."""
+    rng = np.random.default_rng(15)
+    rec = _pair(_step_profile(200.0, rng), PT100_FAST_2, PT100_SLOW_2, 0.1, 200.0, 0.05, rng)
+    cool1, cool2 = (14.0, 0.2), (30.0, 1.2)
+    out = {
+        mode: _ratio(
+            reconstruct_pair(
+                rec.t1,
+                rec.t2,
+                rec.ts,
+                PT100_FAST_2,
+                PT100_SLOW_2,
+                mode=mode,
+                taus1_cool=cool1,
+                taus2_cool=cool2,
+            ),
+            rec,
+        )
+        for mode in ("smoother", "filter")
+    }
+    print(f"wrong cooling time constants: {out}")
+    assert out["smoother"] < 0.3  # measured 0.04 (0.10 on another record)
+    assert out["filter"] < 0.5  # measured 0.24 (unconstrained GLR diverged: 2.6 on another)
+
+
 # --------------------------------------------------------------------------------------------
 # Second-order sensors (paper Tables I and II), 100 Hz
 # --------------------------------------------------------------------------------------------

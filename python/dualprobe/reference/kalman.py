@@ -55,12 +55,16 @@ its end by ``nu expm(F_m (1 - phi) Ts) e_0`` (``e_0`` = gas level), which to O((
 3x; measured 2.5-13 % of the sensor's RMSE on 10 Hz steps against 0.9-1.3 % with two.) Per
 candidate the filter keeps the two effects on the filtered state M (2 x n, rows mu0, mu1), the
 2-vector a and the symmetric 2x2 C. The filter is linear, so a jump adds
-``rho^T [alpha, beta]`` to the innovations (rho = M H^T, 2 x 2); the maximum likelihood
-``[alpha, beta] = C^-1 a`` and twice its log-likelihood ratio is ``a^T C^-1 a``, chi-square with
-2 dof under no jump. Threshold ``h = chi2.isf(GLR_FALSE_ALARM / D, 2)``: a false alarm about
-once per 1e6 samples (then a "jump" of noise size is applied, harmless). While
-``det C <= GLR_SINGULAR (trace C)^2`` the two positions cannot be told apart yet and the
-candidate is not tested (statistic 0; use >= 1e-5 in float).
+``rho^T [alpha, beta]`` to the innovations (rho = M H^T, 2 x 2), and twice the log-likelihood
+ratio of the best (alpha, beta) is a chi-square with 2 dof under no jump. The jump must lie
+inside its interval (0 <= phi <= 1, i.e. alpha beta >= 0; unconstrained, model errors
+produce huge opposite alpha and beta that made the filter diverge with 15 % wrong cooling time
+constants), so the best fit is the unconstrained ``[alpha, beta] = C^-1 a`` with statistic
+``a^T C^-1 a`` when that has alpha beta >= 0 (and ``det C > GLR_SINGULAR (trace C)^2``: the two
+positions are resolved), else the better of the jump at the start (``alpha = a0/C00``,
+statistic ``a0^2/C00``) and at the end (``beta = a1/C11``, ``a1^2/C11``). Threshold
+``h = chi2.isf(GLR_FALSE_ALARM / D, 2)``: a false alarm about once per 1e6 samples (then a
+"jump" of noise size is applied, harmless).
 
 4. Recursion (k = 0..N-1); x0, P0 given (defaults in :func:`default_initial_state`)
 -----------------------------------------------------------------------------------
@@ -81,10 +85,11 @@ GLR (k >= 1, after the update; candidates oldest first):
                                 (the oldest is dropped when D are stored)
     for every candidate:        rho = M H^T
                                 a += rho S^-1 e,  C += rho S^-1 rho^T,  M = M - rho K^T
-                                stat = a^T C^-1 a  (0 while C is singular, see 3.)
+                                (stat, [alpha, beta], W) as in 3., W the inverse information:
+                                C^-1, or [[1/C00, 0], [0, 0]], or [[0, 0], [0, 1/C11]]
+                                (start preferred when a0^2/C00 = a1^2/C11)
     j = first candidate with the largest stat; if stat_j > h:
-        [alpha, beta] = C_j^-1 a_j,  x_k += alpha mu0_j + beta mu1_j,
-        P_k += M_j^T C_j^-1 M_j,  drop all candidates
+        x_k += alpha mu0_j + beta mu1_j,  P_k += M_j^T W_j M_j,  drop all candidates
         (jump size alpha + beta in interval theta_j, at fraction beta / (alpha + beta))
 
 The output is ``x_k[0]``, the filtered gas temperature at the instant t_k. Memory: x (n),
@@ -347,6 +352,38 @@ def glr_threshold(window: int = GLR_WINDOW, false_alarm: float = GLR_FALSE_ALARM
     return float(scipy.stats.chi2.isf(false_alarm / window, 2))
 
 
+def _glr_statistics(a: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per candidate: the statistic, the maximum-likelihood (alpha, beta) with the jump inside
+    its interval (alpha beta >= 0), and the inverse information matrix of that estimate."""
+    count = a.shape[0]
+    c00, c11 = c[:, 0, 0], c[:, 1, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        stat0 = np.where(c00 > 0.0, a[:, 0] ** 2 / c00, 0.0)  # jump at the start (beta = 0)
+        stat1 = np.where(c11 > 0.0, a[:, 1] ** 2 / c11, 0.0)  # jump at the end (alpha = 0)
+    stat = np.maximum(stat0, stat1)
+    coef = np.zeros((count, 2))
+    weight = np.zeros((count, 2, 2))
+    at_start = stat0 >= stat1
+    if np.any(at_start):
+        coef[at_start, 0] = a[at_start, 0] / c00[at_start]
+        weight[at_start, 0, 0] = 1.0 / c00[at_start]
+    at_end = ~at_start & (c11 > 0.0)
+    if np.any(at_end):
+        coef[at_end, 1] = a[at_end, 1] / c11[at_end]
+        weight[at_end, 1, 1] = 1.0 / c11[at_end]
+    det = c00 * c11 - c[:, 0, 1] * c[:, 1, 0]
+    resolved = det > GLR_SINGULAR * (c00 + c11) ** 2
+    if np.any(resolved):
+        inv = np.linalg.inv(c[resolved])
+        sol = np.einsum("dij,dj->di", inv, a[resolved])
+        inside = sol[:, 0] * sol[:, 1] >= 0.0  # 0 <= phi <= 1
+        idx = np.flatnonzero(resolved)[inside]
+        stat[idx] = np.sum(a[idx] * sol[inside], axis=1)
+        coef[idx] = sol[inside]
+        weight[idx] = inv[inside]
+    return stat, coef, weight
+
+
 def kalman_filter(
     y: np.ndarray,
     model: PairModel,
@@ -423,19 +460,12 @@ def kalman_filter(
             a_sum = a_sum + rho @ (s_inv @ e)
             c_sum = c_sum + rho @ s_inv @ np.swapaxes(rho, 1, 2)
             eff = eff - rho @ gain.T
-            det = c_sum[:, 0, 0] * c_sum[:, 1, 1] - c_sum[:, 0, 1] * c_sum[:, 1, 0]
-            trace = c_sum[:, 0, 0] + c_sum[:, 1, 1]
-            resolved = det > GLR_SINGULAR * trace**2
-            stat = np.zeros(theta.size)
-            if np.any(resolved):
-                sol = np.linalg.solve(c_sum[resolved], a_sum[resolved][..., None])[..., 0]
-                stat[resolved] = np.sum(a_sum[resolved] * sol, axis=1)
+            stat, coef, weight = _glr_statistics(a_sum, c_sum)
             j = int(np.argmax(stat))
             if stat[j] > threshold:
-                c_inv = np.linalg.inv(c_sum[j])
-                alpha_beta = c_inv @ a_sum[j]
+                alpha_beta = coef[j]
                 x = x + alpha_beta @ eff[j]
-                p = p + eff[j].T @ c_inv @ eff[j]
+                p = p + eff[j].T @ weight[j] @ eff[j]
                 detected.append((k, int(theta[j]), float(np.sum(alpha_beta))))
                 eff = np.empty((0, 2, n))
                 a_sum = np.empty((0, 2))
