@@ -211,7 +211,6 @@ def test_second_order_pair_at_100hz() -> None:
 # --------------------------------------------------------------------------------------------
 
 
-@pytest.mark.slow
 def test_hysteretic_sensors_use_their_cooling_time_constants() -> None:
     rng = np.random.default_rng(31)
     duration, ts = 600.0, 0.1
