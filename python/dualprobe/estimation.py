@@ -477,14 +477,17 @@ class _SvfRun:
         then a first-order pair fits as well, i.e. both sensors are first order or share a
         pole, which :meth:`reduced` reports.
         """
-        fits = _sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
+        degenerate = int(identifiability["null_dimension"]) > 1  # type: ignore[call-overload]
+        try:
+            fits = _sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
+        except (np.linalg.LinAlgError, ValueError):  # as _safe_estimate: no usable scatter
+            return None if degenerate else res
         full = fits[(2, 2)]
         reference = max(full.mu, 1.0)
         statistics = {key: (fit.mu - full.mu) / reference * math.sqrt(n_eff / 2.0)
                       for key, fit in fits.items()}
         self.details["sensor_order_statistics"] = {
             f"{key[0]},{key[1]}": statistics[key] for key in fits if key != (2, 2)}
-        degenerate = int(identifiability["null_dimension"]) > 1  # type: ignore[call-overload]
         if degenerate and statistics[(1, 1)] < GAP_THRESHOLD:
             return None
         chosen = (2, 2)
