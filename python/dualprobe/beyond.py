@@ -444,7 +444,7 @@ def _series(rows: list[dict[str, Any]], key: str) -> tuple[list[float], list[flo
 
 def _figure_study(study: str, variants: dict[str, list[dict[str, Any]]], path: Path) -> str:
     plt = _pyplot()
-    fig, axes = plt.subplots(1, len(variants), figsize=(6 * len(variants), 4.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(variants), figsize=(6 * len(variants), 5.8), squeeze=False)
     for ax, (name, rows) in zip(axes[0], variants.items(), strict=True):
         recon = "exact ZOH inverse" if rows and rows[0]["reconstruction"] == "zoh" else \
             "reconstruct_pair (smoother)"
@@ -466,7 +466,7 @@ def _figure_study(study: str, variants: dict[str, list[dict[str, Any]]], path: P
         ax.set_ylabel("RMSE of the reconstructed gas temperature (K)")
         ax.set_title(f"study {study}, {name}")
         ax.grid(True, which="both", alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=2)
     return _save(fig, path)
 
 
