@@ -54,6 +54,7 @@ __all__ = [
     "localise",
     "noise_std",
     "residual_tests",
+    "sampling_floor",
     "simulate_effects",
     "simulate_hysteretic",
     "write_json",
@@ -97,6 +98,15 @@ REGIME_THRESHOLD_NOISE = 5.0
 WHITENESS_LAGS = 25  # as MATLAB resid
 CONFIDENCE = 0.99  # resid's band
 MIN_SAMPLES = 50
+# A static effect (offset, gain, nonlinearity) must reduce the mean square residual of the
+# settled samples by a quarter of the noise variance (its correction there has an RMS of at least
+# half the noise; a realistic one, 0.5 K or 2 % gain, is ~25-100x that), checked when at least
+# MIN_STEADY_SAMPLES (and 5 % of the record) are settled.
+MIN_STEADY_IMPROVEMENT = 0.25
+MIN_STEADY_SAMPLES = 200
+# Look two effects ahead only while the mean square residual exceeds the floor by this many
+# floors (RMSE > 1.4 x the floor's): below, there is nothing left that two effects could hide.
+PAIR_SEARCH_GAP = 1.0
 
 try:  # the C++ hot loop, when the extension is built
     from dualprobe._core import (  # type: ignore[attr-defined]
@@ -258,30 +268,32 @@ class _Layout:
         if "dead_time" in effects:
             names.append("delay")
         self.names = names
-        tau_lo, tau_hi = math.log(0.02 * ts), math.log(10.0 * duration)
-        lower = {"log_tau": tau_lo, "log_tau_heat": tau_lo, "log_tau_cool": tau_lo}
-        upper = {"log_tau": tau_hi, "log_tau_heat": tau_hi, "log_tau_cool": tau_hi}
-        lower.update(initial=-np.inf, log_ratio2=math.log(1e-3), delay=0.0)
-        upper.update(initial=np.inf, log_ratio2=0.0, delay=0.25 * duration)
-        self.lower = np.array([lower[n] for n in names])
-        self.upper = np.array([upper[n] for n in names])
+        self.tau_bounds = (math.log(0.02 * ts), math.log(10.0 * duration))
+        self.max_delay = 0.25 * duration
         scale = {"initial": 1.0, "delay": ts}
         self.scale = np.array([scale.get(n, 0.1) for n in names])
 
     def to_params(self, vector: np.ndarray) -> dict[str, float]:
+        """Parameters from an unconstrained vector (Levenberg-Marquardt has no bounds): log time
+        constants clipped to a sane range, tau2 / tau = exp(-|v|) <= 1, delay = |v|."""
         v = dict(zip(self.names, (float(x) for x in vector), strict=True))
+        lo, hi = self.tau_bounds
+
+        def tau(name: str) -> float:
+            return math.exp(min(max(v[name], lo), hi))
+
         p: dict[str, float] = {"initial": v["initial"]}
         if "log_tau" in v:
-            p["tau"] = math.exp(v["log_tau"])
+            p["tau"] = tau("log_tau")
             main = p["tau"]
         else:
-            p["tau_heat"] = math.exp(v["log_tau_heat"])
-            p["tau_cool"] = math.exp(v["log_tau_cool"])
+            p["tau_heat"] = tau("log_tau_heat")
+            p["tau_cool"] = tau("log_tau_cool")
             main = min(p["tau_heat"], p["tau_cool"])
         if "log_ratio2" in v:
-            p["tau2"] = main * math.exp(v["log_ratio2"])
+            p["tau2"] = main * math.exp(-min(abs(v["log_ratio2"]), 30.0))
         if "delay" in v:
-            p["delay"] = v["delay"]
+            p["delay"] = min(abs(v["delay"]), self.max_delay)
         return p
 
     def to_vector(self, p: Mapping[str, float]) -> np.ndarray:
@@ -301,8 +313,13 @@ class _Layout:
                 else min(p.get("tau_heat", tau), p.get("tau_cool", tau))
             )
             values["log_ratio2"] = math.log(min(p.get("tau2", 0.1 * main) / main, 1.0))
-        vector = np.array([values[n] for n in self.names])
-        return np.clip(vector, self.lower, self.upper)
+        return np.array([values[n] for n in self.names])
+
+
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    # einsum's own loop, not BLAS: OpenBLAS threads waking for every vector product cost
+    # milliseconds each on a loaded machine.
+    return float(np.einsum("i,i->", a, b))
 
 
 class _Problem:
@@ -313,7 +330,7 @@ class _Problem:
         self.y = y
         self.ts = ts
         self.duration = ts * (u.size - 1)
-        self.y_spread = float(np.linalg.norm(y - y.mean()))
+        self.y_spread = math.sqrt(_dot(y - y.mean(), y - y.mean()))
 
     def static_solve(
         self, x: np.ndarray, effects: Sequence[str]
@@ -323,12 +340,19 @@ class _Problem:
         columns = _static_columns(x, effects)
         if not columns:
             return base, {}
-        matrix = np.column_stack([c for _, c in columns])
-        norms = np.linalg.norm(matrix, axis=0)
-        norms[norms == 0] = 1.0
-        coef, *_ = np.linalg.lstsq(matrix / norms, base, rcond=None)
-        coef = coef / norms
-        residual = base - matrix @ coef
+        # Normal equations of at most 3 columns, scaled to unit norm (condition <~ 1e6 for
+        # levels within 0-1000 degC: far inside double precision), without BLAS.
+        cols = [c for _, c in columns]
+        norms = np.array([math.sqrt(_dot(c, c)) or 1.0 for c in cols])
+        gram = np.array([[_dot(a, b) for b in cols] for a in cols]) / np.outer(norms, norms)
+        rhs = np.array([_dot(c, base) for c in cols]) / norms
+        try:
+            coef = np.linalg.solve(gram, rhs) / norms
+        except np.linalg.LinAlgError:
+            coef = np.linalg.lstsq(gram, rhs, rcond=None)[0] / norms
+        residual = base.copy()
+        for c, value in zip(cols, coef, strict=True):
+            residual -= value * c
         static = {}
         for (name, _), value in zip(columns, coef, strict=True):
             static[name] = float(value) + (1.0 if name == "gain" else 0.0)
@@ -340,7 +364,7 @@ class _Problem:
 
     def sse(self, effects: Sequence[str], p: Mapping[str, float]) -> float:
         r = self.residual(effects, p)
-        return float(r @ r)
+        return _dot(r, r)
 
     def make_fit(self, effects: Sequence[str], p: Mapping[str, float]) -> ModelFit:
         x = _dynamics(self.u, self.ts, p)
@@ -348,8 +372,9 @@ class _Problem:
         params = dict(p)
         params.update(static)
         prediction = self.y - residual
-        rmse = float(np.sqrt(np.mean(residual**2)))
-        fit = 100.0 * (1.0 - float(np.linalg.norm(residual)) / max(self.y_spread, 1e-300))
+        sse = _dot(residual, residual)
+        rmse = math.sqrt(sse / residual.size)
+        fit = 100.0 * (1.0 - math.sqrt(sse) / max(self.y_spread, 1e-300))
         return ModelFit(tuple(effects), _ordered(params), prediction, residual, rmse, fit)
 
 
@@ -383,12 +408,7 @@ def fit_model(
     for start in starts:
         x0 = layout.to_vector(start)
         solution = optimize.least_squares(
-            fun,
-            x0,
-            bounds=(layout.lower, layout.upper),
-            x_scale=layout.scale,
-            method="trf",
-            max_nfev=100 * len(x0),
+            fun, x0, x_scale=layout.scale, method="lm", max_nfev=100 * (len(x0) + 1)
         )
         fit = problem.make_fit(effects, layout.to_params(solution.x))
         if best is None or fit.rmse < best.rmse:
@@ -480,6 +500,32 @@ def noise_std(x: np.ndarray) -> float:
     d2 = x[2:] - 2.0 * x[1:-1] + x[:-2]
     mad = float(np.median(np.abs(d2 - np.median(d2))))
     return 1.482602218505602 * mad / math.sqrt(6.0)
+
+
+def sampling_floor(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> float:
+    """Mean square residual even a perfect model leaves because gas jumps fall between samples.
+
+    A jump dT of the reference (changes of 14 noise standard deviations of a difference) happened
+    at an unknown instant within a sample interval; interpolation puts it
+    mid-interval, off by delta ~ U(-ts/2, ts/2). The first-order response to that shift is
+    dT delta/tau exp(-t/tau), of energy dT^2 delta^2 / (2 tau), mean delta^2 = ts^2 / 12."""
+    du = np.diff(u)
+    size = np.abs(du)
+    big = size > max(10.0 * math.sqrt(2.0) * sigma_u, 1e-9)
+    # A jump is a run of at most 3 large differences (a reference with a lag of a fraction of a
+    # sample spreads it over two or three), isolated: 3x larger than the differences around it.
+    # Longer runs are ramps, which interpolation follows.
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], big.astype(np.int8), [0]))))
+    total = 0.0
+    for start, end in zip(edges[::2], edges[1::2], strict=True):
+        if end - start > 3:
+            continue
+        jump = float(np.sum(du[start:end]))
+        around = max(size[start - 1] if start > 0 else 0.0, size[end] if end < size.size else 0.0)
+        if abs(jump) > 3.0 * around:
+            total += jump**2
+    energy = ts**2 / 12.0 * total / (2.0 * tau)
+    return energy / (u.size * ts)
 
 
 def _autocorrelation(r: np.ndarray, max_lag: int) -> np.ndarray:
@@ -881,11 +927,26 @@ def _effect_size(effect: str, fit: ModelFit, x_range: tuple[float, float], ts: f
 class _Judge:
     """Evidence for extending a model, shared by the forward search and the backward check."""
 
-    def __init__(self, problem: _Problem, floor: float, x_range: tuple[float, float]) -> None:
+    def __init__(
+        self,
+        problem: _Problem,
+        floor: float,
+        white_floor: float,
+        x_range: tuple[float, float],
+    ) -> None:
         self.problem = problem
-        self.floor = floor
+        self.floor = floor  # white noise plus the sampling floor of off-grid jumps
+        self.white_floor = white_floor
         self.x_range = x_range
         self.chi2_threshold = float(stats.chi2.isf(SIGNIFICANCE_LEVEL, 1))
+        self.steady = np.zeros(problem.u.size, dtype=bool)
+
+    def set_steady(self, baseline: ModelFit) -> None:
+        """Samples where the baseline sensor (unity gain: its output is its state) has settled
+        on the gas, within REGIME_THRESHOLD_NOISE noise standard deviations."""
+        smooth = _moving_mean(self.problem.u, max(3, round(0.5 / self.problem.ts)))
+        threshold = max(REGIME_THRESHOLD_NOISE * math.sqrt(self.white_floor), 0.2)
+        self.steady = np.abs(smooth - baseline.prediction) < threshold
 
     def evidence(
         self, effect: str | Sequence[str], before: ModelFit, after: ModelFit
@@ -903,10 +964,20 @@ class _Judge:
         closed = (mse0 - mse1) / gap
         size = min(_effect_size(e, after, self.x_range, self.problem.ts) for e in added)
         statistical = bool(lr > self.chi2_threshold and delta_bic > 0)
-        improvement = (mse0 - mse1) / max(self.floor, 1e-300)
+        improvement = (mse0 - mse1) / max(self.white_floor, 1e-300)
         practical = bool(
             closed >= MIN_GAP_CLOSED and improvement >= MIN_IMPROVEMENT_OF_NOISE and size >= 1.0
         )
+        steady_improvement = float("nan")
+        if any(e in STATIC_EFFECTS for e in added):
+            # A static effect must show where the sensor has settled: transient artefacts
+            # (jumps between samples, a lagging reference) can buy a small level-correlated
+            # offset or gain on the whole record, never in steady state.
+            steady = self.steady
+            if np.sum(steady) >= max(MIN_STEADY_SAMPLES, 0.05 * n):
+                r0, r1 = before.residual[steady], after.residual[steady]
+                steady_improvement = (_dot(r0, r0) - _dot(r1, r1)) / r0.size / self.white_floor
+                practical = practical and steady_improvement >= MIN_STEADY_IMPROVEMENT
         return {
             "likelihood_ratio": lr,
             "p_value": float(stats.chi2.sf(max(lr, 0.0), dof)),
@@ -916,6 +987,7 @@ class _Judge:
             "gap_closed": closed,
             "improvement_over_noise_variance": improvement,
             "effect_size_over_minimum": size,
+            "steady_improvement_over_noise_variance": steady_improvement,
             "statistically_significant": statistical,
             "practically_significant": practical,
             "significant": statistical and practical,
@@ -1005,10 +1077,12 @@ def diagnose(
 
     h = ts / baseline.tau
     noise_gain = -math.expm1(-h) / (1.0 + math.exp(-h))  # output variance / white input variance
-    floor = sigma_y**2 + noise_gain * sigma_u**2
+    white_floor = sigma_y**2 + noise_gain * sigma_u**2
+    floor = white_floor + sampling_floor(u, ts, baseline.tau, sigma_u)
     x_range = tuple(np.quantile(y, [0.01, 0.99]))
-    judge = _Judge(problem, floor, (float(x_range[0]), float(x_range[1])))
-    sigma = math.sqrt(floor)
+    judge = _Judge(problem, floor, white_floor, (float(x_range[0]), float(x_range[1])))
+    judge.set_steady(baseline)
+    sigma = math.sqrt(white_floor)
 
     # 2-4. Greedy forward search.
     current = baseline
@@ -1025,9 +1099,7 @@ def diagnose(
         winner = _choose(candidates, judge.chi2_threshold)
         table = {e: _candidate_summary(c[1]) for e, c in candidates.items()}
         if winner is None:
-            # Two static effects can cancel each other's linear part (a gain error against the
-            # curvature of a Pt-100 read with linear alpha): look one step further for them.
-            pair = _static_pair(problem, judge, current, candidates)
+            pair = _pair_search(problem, judge, current, candidates)
             if pair is None:
                 last_round = table
                 break
@@ -1112,30 +1184,43 @@ def _make_step(
 STATIC_EFFECTS = ("offset", "gain", "nonlinearity")
 
 
-def _static_pair(
+def _pair_search(
     problem: _Problem,
     judge: _Judge,
     current: ModelFit,
     candidates: Mapping[str, tuple[ModelFit, dict[str, Any]]],
 ) -> list[tuple[str, ModelFit, dict[str, Any]]] | None:
-    """The best significant pair of static effects (tested jointly, 2 degrees of freedom) as
-    two steps, the one that closes more alone first; None if no pair is significant."""
-    missing = [e for e in STATIC_EFFECTS if e not in current.effects]
+    """Look two steps ahead when no single effect is significant but a large gap remains.
+
+    Two effects can cancel each other's level error so that neither helps alone: a gain error
+    against the curvature of a Pt-100 read with linear alpha, or against the mean-level bias a
+    direction-dependent time constant builds up under fluctuating gas. Pairs with at least one
+    static effect are fitted and tested jointly (2 degrees of freedom); the best significant
+    pair is returned as two steps, the one that closes more alone first. None if no pair is
+    significant or the gap left is within the noise floor (nothing to look for)."""
+    if current.mse - judge.floor < PAIR_SEARCH_GAP * judge.floor:
+        return None
+    missing = [e for e in EFFECTS if e not in current.effects]
     best: tuple[float, list[tuple[str, ModelFit, dict[str, Any]]]] | None = None
-    for i, first in enumerate(missing):
-        for second in missing[i + 1 :]:
-            a, b = sorted((first, second), key=lambda e: -candidates[e][1]["gap_closed"])
-            both = fit_model(problem, (*current.effects, a, b), [current.params])
-            joint = judge.evidence((a, b), current, both)
-            if not joint["significant"] or (best is not None and joint["gap_closed"] <= best[0]):
-                continue
-            single_fit, single_ev = candidates[a]
-            joint_fields = {f"joint_{k}": v for k, v in joint.items() if k != "rmse"}
-            joint_fields["joint_with"] = b
-            first_ev = {**single_ev, **joint_fields}
-            second_ev = {**judge.evidence(b, single_fit, both), **joint_fields}
-            second_ev["joint_with"] = a
-            best = (joint["gap_closed"], [(a, single_fit, first_ev), (b, both, second_ev)])
+    for first, second in itertools.combinations(missing, 2):
+        if first not in STATIC_EFFECTS and second not in STATIC_EFFECTS:
+            continue
+        a, b = sorted((first, second), key=lambda e: -candidates[e][1]["gap_closed"])
+        effects = (*current.effects, a, b)
+        fit_a, fit_b = candidates[a][0], candidates[b][0]
+        starts = [
+            *_candidate_starts(problem, fit_b, a, effects),
+            *_candidate_starts(problem, fit_a, b, effects),
+        ]
+        both = fit_model(problem, effects, starts)
+        joint = judge.evidence((a, b), current, both)
+        if not joint["significant"] or (best is not None and joint["gap_closed"] <= best[0]):
+            continue
+        single_ev = candidates[a][1]
+        joint_fields: dict[str, Any] = {f"joint_{k}": v for k, v in joint.items() if k != "rmse"}
+        first_ev = {**single_ev, **joint_fields, "joint_with": b}
+        second_ev = {**judge.evidence(b, fit_a, both), **joint_fields, "joint_with": a}
+        best = (joint["gap_closed"], [(a, fit_a, first_ev), (b, both, second_ev)])
     return None if best is None else best[1]
 
 
@@ -1430,7 +1515,8 @@ def _markdown(d: Diagnosis) -> str:
         f"{d.measured.size} samples at {d.sample_interval:g} s "
         f"({d.measured.size * d.sample_interval / 60:.1f} min). White noise estimated from "
         f"second differences: reference {d.noise_std[0]:.3g} K, measured {d.noise_std[1]:.3g} K; "
-        f"residual floor of a perfect model {math.sqrt(d.noise_floor):.3g} K RMS.",
+        f"residual floor of a perfect model (white noise, gas jumps between samples) "
+        f"{math.sqrt(d.noise_floor):.3g} K RMS.",
         "",
         "## Result",
         "",
