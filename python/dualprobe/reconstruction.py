@@ -46,7 +46,14 @@ import scipy.linalg
 import scipy.linalg.lapack
 import scipy.optimize
 
-from dualprobe.reference.kalman import GAS_MODELS, PairModel, kalman_filter, pair_model
+from dualprobe.reference.kalman import (
+    FLOOR_DYN,
+    FLOOR_REL,
+    GAS_MODELS,
+    PairModel,
+    kalman_filter,
+    pair_model,
+)
 
 __all__ = [
     "MODES",
@@ -54,6 +61,7 @@ __all__ = [
     "estimate_noise_std",
     "fit_smoother",
     "reconstruct_pair",
+    "resolvable_stages",
 ]
 
 MODES = ("smoother", "filter", "inverse")
@@ -62,11 +70,13 @@ MIN_SAMPLES = 8  # fewer: no noise level, no intensity can be estimated
 _DIFF_ORDER = 3  # third differences: a first-order sensor's kinks at gas steps are outliers
 _SIGMA_FLOOR_REL = 1e-9  # smallest noise level, relative to the signal scale (exact data)
 _MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
-_SELECT_ROUNDS = 3  # rounds given to every gas model before the better one is finished
+STAGE_MERGE_FRACTION = 0.1  # stages faster than this share of Ts are merged (see docstring)
 _NEWTON_H = 0.2  # log q step of the parabola (the nll is smooth in log q on this scale)
 _NEWTON_MAX = 3.0  # largest log q move per round
 _MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
 _LOGQ_TOL = 0.1  # 10 % in q: the reconstruction changes by a fraction of that
+_START_TOL = 0.5  # log q tolerance of the Gaussian start
+_NLL_TOL = 1.0  # settled: the best nll gained less than this over two rounds
 _UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
 _WANDER_MIN = 1e-3  # smallest q: the gas wanders by 1e-3 sigma over the whole record
 _STEP_MAX = 1e3  # largest q: one step of the gas moves it by 1e3 times the signals' span
@@ -149,8 +159,53 @@ def _effective_sigma(y: np.ndarray, sigma: tuple[float, float] | None) -> np.nda
 
 
 # --------------------------------------------------------------------------------------------
+# Sensor stages the samples resolve
+# --------------------------------------------------------------------------------------------
+
+
+def resolvable_stages(
+    taus: Sequence[float], ts: float, taus_cool: Sequence[float] | None = None
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The stages of one sensor as the model-based modes (smoother, filter) use them.
+
+    A second stage faster than ``STAGE_MERGE_FRACTION * ts`` (heating or cooling) is merged
+    into the other one with the sum of the time constants kept (the lag on a ramp, i.e. the
+    first moment of the impulse response); a remaining single stage faster than that limit
+    is raised to it. Returns (heating, cooling) time constants, cooling = heating when
+    ``taus_cool`` is None. See the module docstring for why and what it costs.
+    """
+    heat = tuple(float(t) for t in taus)
+    cool = heat if taus_cool is None else tuple(float(t) for t in taus_cool)
+    if len(cool) != len(heat):
+        raise ValueError(
+            f"resolvable_stages: need as many cooling as heating time constants, got "
+            f"{len(cool)} and {len(heat)}"
+        )
+    limit = STAGE_MERGE_FRACTION * float(ts)
+    if len(heat) == 2 and min(heat + cool) < limit:
+        heat, cool = (heat[0] + heat[1],), (cool[0] + cool[1],)
+    return tuple(max(t, limit) for t in heat), tuple(max(t, limit) for t in cool)
+
+
+# --------------------------------------------------------------------------------------------
 # The banded MAP smoother
 # --------------------------------------------------------------------------------------------
+
+
+def _process_floor(model: PairModel, sigma: Sequence[float] | np.ndarray, q: float) -> np.ndarray:
+    """The smoother's model-error floor on the sensor stages: :meth:`PairModel.floor` with the
+    within-interval share of a stage ``Ts/tau`` replaced by the exact fraction of a gas move
+    that reaches it within one interval, ``1 - exp(-Ts/tau)`` (the same for tau >> Ts; for a
+    stage faster than Ts the floor saturates at the gas step's own variance / 12 instead of
+    growing as (Ts/tau)^2 and cutting the sensor off from the gas)."""
+    taus = np.array(model.taus_heat[0] + model.taus_heat[1])
+    gas_step = q * float(model.q_unit[0, 0, 0])
+    diag = np.zeros(model.n)
+    diag[model.stage_state] = (
+        FLOOR_REL * np.square(np.asarray(sigma, dtype=float))[model.stage_sensor]
+        + FLOOR_DYN * gas_step * (-np.expm1(-model.ts / taus)) ** 2 / 12.0
+    )
+    return np.diag(diag)
 
 
 class _Trajectory:
@@ -171,6 +226,7 @@ class _Trajectory:
         self.log_det_2pi_r = float(np.sum(np.log(2.0 * np.pi * sigma**2)))
         self.sigma = sigma
         self.hrh = model.h.T @ self.r_inv @ model.h
+        self.outputs = np.argmax(model.h, axis=1)  # the state each sensor measures
         self.rhs = (y @ (self.r_inv @ model.h)).ravel()
         self.upper = 2 * self.n - 1
 
@@ -183,7 +239,7 @@ class _Trajectory:
         when the normal equations are not numerically positive definite."""
         model, n, big_n = self.model, self.n, self.samples
         q = math.exp(log_q)
-        qb = q * model.q_unit + model.floor(self.sigma, q)
+        qb = q * model.q_unit + _process_floor(model, self.sigma, q)
         w_inv = np.linalg.inv(qb)
         log_det_qb = np.linalg.slogdet(2.0 * np.pi * qb)[1]
         phi = model.phi
@@ -218,9 +274,11 @@ class _Trajectory:
         if info != 0:
             return math.inf, np.empty((0, n)), np.empty(0)
         x = x.reshape(big_n, n)
-        resid = self.y - x @ model.h.T
+        # einsum, not matmul: BLAS threads on these tall, thin products cost more than they
+        # save (3x the whole fit on a busy 2-core machine)
+        resid = self.y - x[:, self.outputs]
         if phi.shape[0] == 1:
-            w = x[1:] - x[:-1] @ phi[0].T
+            w = x[1:] - np.einsum("ij,kj->ki", phi[0], x[:-1])
             m2 = np.einsum("ki,ij,kj->k", w, w_inv[0], w)
             log_det_q = (big_n - 1) * log_det_qb[0]
         else:
@@ -229,7 +287,7 @@ class _Trajectory:
             log_det_q = float(np.sum(log_det_qb[modes]))
         prior = float(np.dot(lam, m2)) + log_det_q - n * float(np.sum(np.log(lam)))
         nll = 0.5 * (
-            np.einsum("ki,ij,kj->", resid, self.r_inv, resid)
+            float(np.sum(resid * resid / self.sigma**2))
             + big_n * self.log_det_2pi_r
             + prior
             + 2.0 * float(np.sum(np.log(chol[-1])))
@@ -262,12 +320,16 @@ class _Objective:
     an increment keeps its size while q changes, so its squared Mahalanobis size scales as
     ``m2_ref q_ref / q`` and its weight is ``(nu + n)/(nu + m2_ref q_ref / q)``. (With fixed
     weights, q could only creep down as the steps' weights caught up, ~40 rounds.) Without a
-    reference all weights are 1: the Gaussian model.
+    reference the weights are the initial ones (all 1: the Gaussian model; or those found
+    with another gas model, see :func:`fit_smoother`).
     """
 
-    def __init__(self, system: _Trajectory, modes: np.ndarray) -> None:
+    def __init__(
+        self, system: _Trajectory, modes: np.ndarray, initial_weights: np.ndarray | None = None
+    ) -> None:
         self.system = system
         self.modes = modes
+        self.initial = np.ones(system.samples - 1) if initial_weights is None else initial_weights
         self.m2_ref: np.ndarray | None = None
         self.log_q_ref = 0.0
         self.cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
@@ -278,7 +340,7 @@ class _Objective:
 
     def weights(self, log_q: float) -> np.ndarray:
         if self.m2_ref is None:
-            return np.ones(self.system.samples - 1)
+            return self.initial
         m2 = self.m2_ref * math.exp(self.log_q_ref - log_q)
         return (JUMP_DOF + self.system.n) / (JUMP_DOF + m2)
 
@@ -293,10 +355,10 @@ class _Objective:
 
 
 def _minimise_log_q(
-    fun: _Objective, start: float, step: float, bounds: tuple[float, float]
+    fun: _Objective, start: float, step: float, bounds: tuple[float, float], tol: float
 ) -> float:
     """Bracket the minimum of nll(log q) within ``bounds`` by walking from ``start`` in
-    doubling steps, then refine with bounded Brent to _LOGQ_TOL."""
+    doubling steps, then refine with bounded Brent to ``tol``."""
     low, high = bounds
     start = min(max(start, low), high)
     f0 = fun(start)
@@ -324,10 +386,10 @@ def _minimise_log_q(
             lo, mid, f_mid = mid, hi, f_hi
     else:
         lo, mid, hi = left, start, right
-    if hi - lo <= _LOGQ_TOL:
+    if hi - lo <= tol:
         return mid
     result = scipy.optimize.minimize_scalar(
-        fun, bounds=(lo, hi), method="bounded", options={"xatol": _LOGQ_TOL}
+        fun, bounds=(lo, hi), method="bounded", options={"xatol": tol}
     )
     best = float(result.x)
     return best if fun(best) <= fun(mid) else mid
@@ -385,13 +447,22 @@ class _GasFit:
     The round with the lowest nll is kept (the alternation is not a strict descent).
     """
 
-    def __init__(self, model: PairModel, y: np.ndarray, sigma: np.ndarray) -> None:
+    def __init__(
+        self,
+        model: PairModel,
+        y: np.ndarray,
+        sigma: np.ndarray,
+        initial_weights: np.ndarray | None = None,
+    ) -> None:
         self.model = model
-        self.objective = _Objective(_Trajectory(model, y, sigma), _initial_modes(model, y))
+        self.objective = _Objective(
+            _Trajectory(model, y, sigma), _initial_modes(model, y), initial_weights
+        )
         self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
         lowest, start, highest = _log_q_range(model, y, sigma)
         self.bounds = (lowest, highest)
-        self.log_q = _minimise_log_q(self.objective, start, 4.0, self.bounds)
+        # the rounds refine q: the start needs it to a factor of ~1.6 only
+        self.log_q = _minimise_log_q(self.objective, start, 4.0, self.bounds, _START_TOL)
         self.nll, self.x, self.m2 = self.objective.result(self.log_q)
         self.lam = self.objective.weights(self.log_q)
         self.best = (self.nll, self.log_q, self.lam, self.objective.modes, self.x)
@@ -399,43 +470,55 @@ class _GasFit:
         self.mode_passes = 0
         self.converged = not math.isfinite(self.nll)
 
-    def iterate(self, rounds: int) -> None:
+    def iterate(self, rounds: int, rival: float | None = None) -> None:
+        """Up to ``rounds`` more rounds; with ``rival`` (another model's best nll) stop as
+        soon as this model cannot reach it at its recent rate of improvement."""
         objective, model = self.objective, self.model
-        for _ in range(rounds):
+        gains = [math.inf, math.inf]
+        for left in range(rounds - 1, -1, -1):
             if self.converged:
                 return
-            self.rounds += 1
-            modes = objective.modes
-            if model.hysteretic and self.mode_passes < _MAX_MODE_PASSES:
-                new_modes = _interval_modes(model, self.x)
-                if np.any(new_modes != modes):
-                    modes = new_modes
-                    self.mode_passes += 1
-            objective.set(self.m2, self.log_q, modes)
-            centre = self.log_q
-            f0 = objective(centre)
-            f_minus, f_plus = objective(centre - _NEWTON_H), objective(centre + _NEWTON_H)
-            curvature = (f_plus - 2.0 * f0 + f_minus) / _NEWTON_H**2
-            slope = (f_plus - f_minus) / (2.0 * _NEWTON_H)
-            if curvature > 0.0 and math.isfinite(curvature):
-                move = float(np.clip(-slope / curvature, -_NEWTON_MAX, _NEWTON_MAX))
-            else:
-                move = -_NEWTON_MAX if slope > 0.0 else _NEWTON_MAX
-            candidates = [(f0, centre), (f_minus, centre - _NEWTON_H), (f_plus, centre + _NEWTON_H)]
-            target = min(max(centre + move, self.bounds[0]), self.bounds[1])
-            candidates.append((objective(target), target))
-            nll, log_q = min(candidates)
-            nll, x, m2 = objective.result(log_q)
-            if not math.isfinite(nll):
-                self.converged = True
+            before, centre = self.best[0], self.log_q
+            self._round(objective, model)
+            gains = [gains[1], before - self.best[0]]
+            if max(gains) < _NLL_TOL and abs(self.log_q - centre) < _LOGQ_TOL:
+                self.converged = True  # statistically nothing left to gain
+            if rival is not None and self.best[0] - rival > max(gains) * left:
                 return
-            change = float(np.sqrt(np.mean((x[:, 0] - self.x[:, 0]) ** 2)))
-            self.nll, self.log_q, self.x, self.m2 = nll, log_q, x, m2
-            self.lam = objective.weights(log_q)
-            if nll < self.best[0]:
-                self.best = (nll, log_q, self.lam, objective.modes, x)
-            if change < self.tol and abs(log_q - centre) < _LOGQ_TOL:
-                self.converged = True
+
+    def _round(self, objective: _Objective, model: PairModel) -> None:
+        self.rounds += 1
+        modes = objective.modes
+        if model.hysteretic and self.mode_passes < _MAX_MODE_PASSES:
+            new_modes = _interval_modes(model, self.x)
+            if np.any(new_modes != modes):
+                modes = new_modes
+                self.mode_passes += 1
+        objective.set(self.m2, self.log_q, modes)
+        centre = self.log_q
+        f0 = objective(centre)
+        f_minus, f_plus = objective(centre - _NEWTON_H), objective(centre + _NEWTON_H)
+        curvature = (f_plus - 2.0 * f0 + f_minus) / _NEWTON_H**2
+        slope = (f_plus - f_minus) / (2.0 * _NEWTON_H)
+        if curvature > 0.0 and math.isfinite(curvature):
+            move = float(np.clip(-slope / curvature, -_NEWTON_MAX, _NEWTON_MAX))
+        else:
+            move = -_NEWTON_MAX if slope > 0.0 else _NEWTON_MAX
+        candidates = [(f0, centre), (f_minus, centre - _NEWTON_H), (f_plus, centre + _NEWTON_H)]
+        target = min(max(centre + move, self.bounds[0]), self.bounds[1])
+        candidates.append((objective(target), target))
+        nll, log_q = min(candidates)
+        nll, x, m2 = objective.result(log_q)
+        if not math.isfinite(nll):
+            self.converged = True
+            return
+        change = float(np.sqrt(np.mean((x[:, 0] - self.x[:, 0]) ** 2)))
+        self.nll, self.log_q, self.x, self.m2 = nll, log_q, x, m2
+        self.lam = objective.weights(log_q)
+        if nll < self.best[0]:
+            self.best = (nll, log_q, self.lam, objective.modes, x)
+        if change < self.tol and abs(log_q - centre) < _LOGQ_TOL:
+            self.converged = True
 
 
 def fit_smoother(
@@ -464,17 +547,28 @@ def fit_smoother(
     sigma = _effective_sigma(y, _as_sigma(noise_std))
     offset = float(np.mean(y))
     yc = y - offset  # states relative to the record's mean: better conditioned sums
-    candidates = GAS_MODELS if gas == "auto" else (gas,)
-    fits = []
-    for name in candidates:
-        model = pair_model(
-            taus[0], taus[1], float(ts), gas=name, taus1_cool=cool[0], taus2_cool=cool[1]
+    stages = [resolvable_stages(taus[i], float(ts), cool[i]) for i in range(2)]
+
+    def model_for(name: str) -> PairModel:
+        return pair_model(
+            stages[0][0],
+            stages[1][0],
+            float(ts),
+            gas=name,
+            taus1_cool=stages[0][1],
+            taus2_cool=stages[1][1],
         )
-        fit = _GasFit(model, yc, sigma)
-        fit.iterate(_SELECT_ROUNDS)
-        fits.append(fit)
+
+    # rw first: it places the steps as single increments; irw starts from its weights
+    # (from all-equal weights irw smears a step into a ramp and the reweighting keeps it)
+    fits = [_GasFit(model_for("rw"), yc, sigma)]
+    fits[0].iterate(_MAX_ROUNDS)
+    if gas != "rw":
+        jumps = np.minimum(fits[0].best[2], 1.0)
+        irw = _GasFit(model_for("irw"), yc, sigma, initial_weights=jumps)
+        irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
+        fits = [*fits, irw] if gas == "auto" else [irw]
     chosen = min(fits, key=lambda f: f.best[0])
-    chosen.iterate(_MAX_ROUNDS - chosen.rounds)
     nll, log_q, lam, modes, x = chosen.best
     if not math.isfinite(nll):
         raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")

@@ -301,7 +301,7 @@ def test_banded_smoother_equals_rts_smoother() -> None:
         lam = np.ones(y.shape[0] - 1)
         nll, banded, _ = system.evaluate(math.log(q), lam, np.zeros(lam.size, dtype=np.intp))
         phi = model.phi[0]
-        big_q = q * model.q_unit[0] + model.floor(sigma, q)
+        big_q = q * model.q_unit[0] + reconstruction._process_floor(model, sigma, q)
         h, r = model.h, np.diag(sigma**2)
         n = model.n
         # prior 1000 K wide around the first samples: its pull is ~(posterior/prior var) 1e-6
