@@ -45,6 +45,7 @@ import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack
 import scipy.optimize
+import scipy.stats
 
 from dualprobe.reference.kalman import (
     FLOOR_DYN,
@@ -70,13 +71,18 @@ MIN_SAMPLES = 8  # fewer: no noise level, no intensity can be estimated
 _DIFF_ORDER = 3  # third differences: a first-order sensor's kinks at gas steps are outliers
 _SIGMA_FLOOR_REL = 1e-9  # smallest noise level, relative to the signal scale (exact data)
 _MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
-STAGE_MERGE_FRACTION = 0.1  # stages faster than this share of Ts are merged (see docstring)
+STAGE_MERGE_FRACTION = 0.05  # stages faster than Ts/20 are merged (see docstring)
 _NEWTON_H = 0.2  # log q step of the parabola (the nll is smooth in log q on this scale)
 _NEWTON_MAX = 3.0  # largest log q move per round
 _MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
 _LOGQ_TOL = 0.1  # 10 % in q: the reconstruction changes by a fraction of that
 _START_TOL = 0.5  # log q tolerance of the Gaussian start
 _NLL_TOL = 1.0  # settled: the best nll gained less than this over two rounds
+_JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds a jump
+_STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
+_MAX_JUMP_REGION = 4  # longer runs of jump intervals are not one step on an instant
+_SNAP = 4  # grid points (10 % of Ts): a step this close to an instant sits on it
+_GRID_CHI2 = 6.635  # chi2(1 dof) 99 % quantile: the step-at-a-sample tests
 _UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
 _WANDER_MIN = 1e-3  # smallest q: the gas wanders by 1e-3 sigma over the whole record
 _STEP_MAX = 1e3  # largest q: one step of the gas moves it by 1e3 times the signals' span
@@ -412,16 +418,93 @@ class SmootherFit:
     sigma: tuple[float, float]
     nll_by_gas: dict[str, float]
     iterations: int
+    steps_at_samples: np.ndarray
 
     @property
     def gas(self) -> np.ndarray:
-        """MAP gas temperature at the sample instants."""
-        return self.states[:, 0] + self.offset
+        """MAP gas temperature at the sample instants, right-continuous where a gas step sits
+        on an instant (``steps_at_samples`` rows (k0, k1, m): the level of sample k0 before
+        the instant k0 + m, that of sample k1 from it on)."""
+        gas = self.states[:, 0] + self.offset
+        for k0, k1, m in self.steps_at_samples:
+            gas[k0 + 1 : k0 + m] = gas[k0]
+            gas[k0 + m : k1] = gas[k1]
+        return gas
 
     @property
     def background_q(self) -> float:
         """Intensity of the ordinary (non-jump) gas motion: q / median weight."""
         return self.q / float(np.median(self.weights))
+
+
+def _continuous_matrix(model: PairModel) -> np.ndarray:
+    """F of the continuous-time model (heating time constants), as in
+    :mod:`dualprobe.reference.kalman` section 1."""
+    n = model.n
+    f = np.zeros((n, n))
+    if model.gas == "irw":
+        f[0, 1] = 1.0
+    taus = np.array(model.taus_heat[0] + model.taus_heat[1])
+    f[model.stage_state, model.stage_input] += 1.0 / taus
+    f[model.stage_state, model.stage_state] -= 1.0 / taus
+    return f
+
+
+def _steps_at_samples(
+    model: PairModel,
+    y: np.ndarray,
+    x: np.ndarray,
+    lam: np.ndarray,
+    modes: np.ndarray,
+    sigma: np.ndarray,
+) -> np.ndarray:
+    """Gas steps that sit exactly on a sample instant: rows (first sample, last sample, m) of
+    the jump regions whose step is at the instant first + m (see the module docstring,
+    "Steps on a sample instant").
+
+    A jump region is a run of intervals k0..k1 the smoother weights below ``_JUMP_WEIGHT``
+    of the median. One step J = g(k1+1) - g(k0) at t(k0) + s Ts, s in [0, L] (L = k1-k0+1),
+    from the state x(k0) predicts the outputs at t(k0+1..k0+L) as the free response plus
+    ``J H expm(F (j - s) Ts) e_0`` (j > s). Misfit ``r(s) = sum (residual / sigma)^2 / 2``
+    (the halving: the sample's and the smoothed state's errors) over a grid of s. Accepted
+    at the instant m nearest the best s when m is as good (``2 (r(m) - min r) <=
+    chi2_1(0.99)``) or within ``_SNAP`` grid points of it (a slightly wrong time constant
+    shifts the best s by a few % of Ts), and every other instant is clearly worse
+    (``2 (r - r(m)) > chi2_1(0.99)``: no step, or a step nowhere in particular)."""
+    found: list[tuple[int, int, int]] = []
+    jump = lam < _JUMP_WEIGHT * float(np.median(lam)) if lam.size else np.zeros(0, bool)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], jump.astype(np.int8), [0]))))
+    regions = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    regions = [(a, b) for a, b in regions if b - a <= _MAX_JUMP_REGION]
+    if not regions:
+        return np.zeros((0, 3), dtype=np.intp)
+    per = _STEP_FRACTIONS - 1  # grid points per sample interval
+    longest = max(b - a for a, b in regions)
+    f_ts = _continuous_matrix(model) * model.ts
+    # output response to a unit step i/per intervals ago, i = 0 .. longest * per
+    response = np.array(
+        [model.h @ scipy.linalg.expm(f_ts * (i / per))[:, 0] for i in range(longest * per + 1)]
+    )
+    for k0, end in regions:
+        length = end - k0
+        step = x[end, 0] - x[k0, 0]
+        free = x[k0].copy()
+        r = np.zeros(length * per + 1)  # s = i / per, i = 0 .. length * per
+        positions = np.arange(r.size)
+        for j in range(1, length + 1):
+            free = model.phi[modes[k0 + j - 1]] @ free
+            resid = y[k0 + j] - model.h @ free
+            ago = j * per - positions  # (j - s) in grid units, > 0 when the step came first
+            effect = np.where((ago > 0)[:, None], step * response[np.maximum(ago, 0)], 0.0)
+            r += 0.5 * np.sum(((resid - effect) / sigma) ** 2, axis=1)
+        on_instant = r[::per]
+        best = int(np.argmin(r))
+        m = round(best / per)
+        others = np.delete(on_instant, m)
+        near = 2.0 * (on_instant[m] - r[best]) <= _GRID_CHI2 or abs(best - m * per) <= _SNAP
+        if near and (others.size == 0 or 2.0 * (np.min(others) - on_instant[m]) > _GRID_CHI2):
+            found.append((k0, end, m))
+    return np.array(found, dtype=np.intp).reshape(-1, 3)
 
 
 def _log_q_range(model: PairModel, y: np.ndarray, sigma: np.ndarray) -> tuple[float, ...]:
@@ -583,6 +666,7 @@ def fit_smoother(
         sigma=(float(sigma[0]), float(sigma[1])),
         nll_by_gas={f.model.gas: f.best[0] for f in fits},
         iterations=chosen.rounds,
+        steps_at_samples=_steps_at_samples(chosen.model, yc, x, lam, modes, sigma),
     )
 
 
