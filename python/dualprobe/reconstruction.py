@@ -37,6 +37,7 @@ below its state; the smoother re-evaluates the modes on its own trajectory until
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -45,6 +46,7 @@ import numpy as np
 import scipy.linalg
 import scipy.linalg.lapack
 import scipy.optimize
+import scipy.signal
 import scipy.stats
 
 from dualprobe.reference.kalman import (
@@ -63,6 +65,7 @@ __all__ = [
     "fit_smoother",
     "reconstruct_pair",
     "resolvable_stages",
+    "zoh_inverse",
 ]
 
 MODES = ("smoother", "filter", "inverse")
@@ -81,6 +84,7 @@ _NLL_TOL = 1.0  # settled: the best nll gained less than this over two rounds
 _JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds a jump
 _STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
 _MAX_JUMP_REGION = 4  # longer runs of jump intervals are not one step on an instant
+_MAX_INVERSE_TAIL = 1_000_000  # samples of the inverse's impulse response for its noise gain
 _SNAP = 4  # grid points (10 % of Ts): a step this close to an instant sits on it
 _GRID_CHI2 = 6.635  # chi2(1 dof) 99 % quantile: the step-at-a-sample tests
 _UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
@@ -671,27 +675,121 @@ def fit_smoother(
 
 
 # --------------------------------------------------------------------------------------------
-# The exact inverse (paper), per stage, at the sample instants
+# The exact inverse of the sampled sensor (paper eq. 8, generalised)
 # --------------------------------------------------------------------------------------------
 
 
-def _stage_inverse(
-    out: np.ndarray, tau_heat: float, tau_cool: float, ts: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """Input of one first-order stage at the sample instants from its output: the ZOH inverse
-    ``u(k) = (z(k+1) - a z(k)) / b`` over [t_k, t_k+1), averaged over the two intervals around
-    t_k (NaN at both ends). Heating/cooling by the sign of the output's change. Returns the
-    input and the FIR noise kernel (for tau_heat; used for weighting only)."""
-    rising = np.diff(out) >= 0.0
-    a = np.where(rising, math.exp(-ts / tau_heat), math.exp(-ts / tau_cool))
-    b = 1.0 - a
-    with np.errstate(invalid="ignore"):
-        zoh = (out[1:] - a * out[:-1]) / b
-    inp = np.full(out.shape, np.nan)
-    inp[1:-1] = 0.5 * (zoh[:-1] + zoh[1:])
-    a0 = math.exp(-ts / tau_heat)
-    kernel = np.array([1.0, 1.0 - a0, -a0]) / (2.0 * (1.0 - a0))
-    return inp, kernel
+def _stage_zoh(taus: Sequence[float], ts: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact ZOH discretisation of a chain of first-order stages (the first sees the input):
+    ``z(k+1) = Phi z(k) + Gamma u(k)``."""
+    count = len(taus)
+    big = np.zeros((count + 1, count + 1))
+    for j, tau in enumerate(taus):
+        big[j, j] = -1.0 / tau
+        big[j, j - 1 if j else count] = 1.0 / tau  # input: the previous stage or the gas
+    e = scipy.linalg.expm(big * ts)  # stable for stiff stages (no -F block, unlike Van Loan)
+    return e[:count, :count], e[:count, count]
+
+
+def _linear_inverse(y: np.ndarray, taus: Sequence[float], ts: float) -> np.ndarray:
+    """Held input u(k) on [t_k, t_k+1), k = 0..N-2, of a linear sensor at rest at t_0."""
+    phi, gamma = _stage_zoh(taus, ts)
+    if len(taus) == 1:
+        return (y[1:] - phi[0, 0] * y[:-1]) / gamma[0]
+    # hidden first stage z1: z1(k+1) = r z1(k) + (G1/G2) v(k), r the sampling zero (|r| < 1)
+    v = y[1:] - phi[1, 1] * y[:-1]
+    r = phi[0, 0] - gamma[0] * phi[1, 0] / gamma[1]
+    z1 = np.empty(y.size)
+    z1[0] = y[0]
+    z1[1:] = scipy.signal.lfilter([gamma[0] / gamma[1]], [1.0, -r], v, zi=[r * y[0]])[0]
+    return (v - phi[1, 0] * z1[:-1]) / gamma[1]
+
+
+def _hysteretic_inverse(
+    y: np.ndarray, heat: Sequence[float], cool: Sequence[float], ts: float
+) -> np.ndarray:
+    """As :func:`_linear_inverse` with each stage heating or cooling: the output stage by the
+    sign of (its input - its state) at the start of the interval (causal, as the filter); the
+    first stage, whose input is the unknown, exactly: the output at t_k+1 rises with u, so
+    u >= z1 (heating) iff y(k+1) is at least the value reached with u = z1."""
+    count = len(heat)
+    mats = {
+        modes: _stage_zoh([cool[j] if modes[j] else heat[j] for j in range(count)], ts)
+        for modes in itertools.product((False, True), repeat=count)
+    }
+    if count == 1:
+        cooling = y[1:] < y[:-1]
+        a = np.where(cooling, mats[(True,)][0][0, 0], mats[(False,)][0][0, 0])
+        b = np.where(cooling, mats[(True,)][1][0], mats[(False,)][1][0])
+        return (y[1:] - a * y[:-1]) / b
+    u = np.empty(y.size - 1)
+    z1 = float(y[0])
+    for k in range(y.size - 1):
+        out_cooling = z1 < y[k]
+        phi, gamma = mats[(False, out_cooling)]
+        boundary = (phi[1, 0] + gamma[1]) * z1 + phi[1, 1] * y[k]  # with u = z1
+        phi, gamma = mats[(bool(y[k + 1] < boundary), out_cooling)]
+        u[k] = (y[k + 1] - phi[1, 0] * z1 - phi[1, 1] * y[k]) / gamma[1]
+        z1 = phi[0, 0] * z1 + gamma[0] * u[k]
+    return u
+
+
+def _check_inverse_args(
+    temps: np.ndarray, taus: Sequence[float], ts: float, taus_cool: Sequence[float] | None
+) -> tuple[np.ndarray, tuple[float, ...], tuple[float, ...]]:
+    y = np.asarray(temps, dtype=float)
+    if y.ndim != 1 or y.size < 2 or not np.all(np.isfinite(y)):
+        raise ValueError("zoh_inverse: temps must be a finite 1-D array of >= 2 samples")
+    if not (math.isfinite(ts) and ts > 0.0):
+        raise ValueError(f"zoh_inverse: ts must be finite and > 0, got {ts}")
+    heat = _as_taus("taus", taus)
+    cool = heat if taus_cool is None else _as_taus("taus_cool", taus_cool)
+    assert heat is not None and cool is not None
+    if len(cool) != len(heat):
+        raise ValueError(f"zoh_inverse: taus_cool needs {len(heat)} time constants")
+    return y, heat, cool
+
+
+def zoh_inverse(
+    temps: np.ndarray,
+    taus: float | Sequence[float],
+    ts: float,
+    *,
+    taus_cool: float | Sequence[float] | None = None,
+) -> np.ndarray:
+    """Gas temperature on each sample interval from one sensor's samples: the exact inverse
+    of the whole ZOH-sampled sensor (the paper's eq. 8 for one time constant, any chain of 1
+    or 2 stages here; the first time constant is the stage that sees the gas, which only
+    matters with hysteresis). Exact when the gas is constant over each interval and the
+    sensor starts at rest at ``temps[0]``. For two stages the hidden first stage is carried
+    along; its start-up error decays as ``r^k`` with r the sampling zero (|r| < 1).
+
+    ``out[k]`` is the gas temperature on [t_k, t_k+1); ``out[-1]`` is NaN.
+    """
+    y, heat, cool = _check_inverse_args(temps, _as_tuple(taus), float(ts), taus_cool)
+    out = np.full(y.size, np.nan)
+    out[:-1] = (
+        _linear_inverse(y, heat, float(ts)) if heat == cool
+        else _hysteretic_inverse(y, heat, cool, float(ts))
+    )
+    return out
+
+
+def _as_tuple(taus: float | Sequence[float]) -> tuple[float, ...]:
+    return tuple(float(t) for t in np.atleast_1d(np.asarray(taus, dtype=float)))
+
+
+def _inverse_noise_gain(taus: Sequence[float], ts: float) -> float:
+    """Sum of squares of the impulse response from a sample to the aligned inverse
+    ``(u(k-1) + u(k)) / 2`` (white noise of variance s^2 becomes gain * s^2)."""
+    phi, gamma = _stage_zoh(taus, ts)
+    ratio = 0.0 if len(taus) == 1 else abs(phi[0, 0] - gamma[0] * phi[1, 0] / gamma[1])
+    tail = 16 if ratio < 1e-3 else math.ceil(math.log(1e-12) / math.log(ratio))
+    impulse = np.zeros(min(max(tail, 16), _MAX_INVERSE_TAIL) + 4)
+    impulse[1] = 1.0
+    u = _linear_inverse(impulse, taus, ts)
+    aligned = 0.5 * (u[1:] + u[:-1])
+    return float(np.sum(aligned * aligned) + 0.25 * u[0] ** 2)
 
 
 def _inverse(
@@ -701,17 +799,16 @@ def _inverse(
     cool: tuple[tuple[float, ...], tuple[float, ...]],
     sigma: tuple[float, float] | None,
 ) -> np.ndarray:
-    estimates, variances = [], []
+    """Both sensors' :func:`zoh_inverse`, aligned to the instants (mean of the held values
+    either side of t_k), combined with inverse-variance weights; NaN at both ends."""
     sig = _effective_sigma(y, sigma)
+    estimates, variances = [], []
     for i in range(2):
-        signal = y[:, i]
-        kernel = np.ones(1)
-        # the output stage is the last one: invert from the output towards the gas
-        for tau_h, tau_c in zip(reversed(taus[i]), reversed(cool[i]), strict=True):
-            signal, stage_kernel = _stage_inverse(signal, tau_h, tau_c, ts)
-            kernel = np.convolve(kernel, stage_kernel)
-        estimates.append(signal)
-        variances.append(float(np.sum(kernel**2)) * float(sig[i]) ** 2)
+        held = zoh_inverse(y[:, i], taus[i], ts, taus_cool=cool[i])
+        aligned = np.full(y.shape[0], np.nan)
+        aligned[1:-1] = 0.5 * (held[:-2] + held[1:-1])
+        estimates.append(aligned)
+        variances.append(_inverse_noise_gain(taus[i], ts) * float(sig[i]) ** 2)
     w1 = variances[1] / (variances[0] + variances[1])
     return w1 * estimates[0] + (1.0 - w1) * estimates[1]
 
