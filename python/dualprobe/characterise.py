@@ -153,6 +153,10 @@ def _parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, 
     return values[0], values[1]
 
 
+def _format_taus(taus: Sequence[Sequence[float]]) -> str:
+    return " and ".join("(" + ", ".join(f"{tau:.5g}" for tau in sensor) + ") s" for sensor in taus)
+
+
 def _check_excitation(t1: np.ndarray, t2: np.ndarray, columns: tuple[str, str]) -> None:
     for column, values in zip(columns, (t1, t2), strict=True):
         if np.ptp(values) == 0.0:
@@ -236,20 +240,28 @@ def characterise_arrays(
         heat = estimate.time_constants_heat
         cool = estimate.time_constants_cool
         hysteretic = hysteresis and heat is not None and cool is not None
-        gas = np.asarray(
-            reconstruct_pair(
-                t1,
-                t2,
-                ts,
-                heat[0] if hysteretic and heat is not None else estimate.time_constants[0],
-                heat[1] if hysteretic and heat is not None else estimate.time_constants[1],
-                mode=reconstruction,
-                noise_std=estimate.noise_std,
-                taus1_cool=cool[0] if hysteretic and cool is not None else None,
-                taus2_cool=cool[1] if hysteretic and cool is not None else None,
-            ),
-            dtype=np.float64,
-        )
+        try:
+            gas = np.asarray(
+                reconstruct_pair(
+                    t1,
+                    t2,
+                    ts,
+                    heat[0] if hysteretic and heat is not None else estimate.time_constants[0],
+                    heat[1] if hysteretic and heat is not None else estimate.time_constants[1],
+                    mode=reconstruction,
+                    noise_std=estimate.noise_std,
+                    taus1_cool=cool[0] if hysteretic and cool is not None else None,
+                    taus2_cool=cool[1] if hysteretic and cool is not None else None,
+                ),
+                dtype=np.float64,
+            )
+        except ValueError as exc:
+            # the inputs were validated above: what is left is the data not supporting the
+            # reconstruction with these time constants (exit 3, not 2)
+            raise EstimationError(
+                f"reconstruction ({reconstruction}) with time constants "
+                f"{_format_taus(estimate.time_constants)} failed: {exc}"
+            ) from None
         if gas.shape != t1.shape:
             raise EstimationError(
                 f"reconstruction returned {gas.shape[0] if gas.ndim else 0} samples for "

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,6 +85,8 @@ _JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds
 _STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
 _MAX_JUMP_REGION = 4  # longer runs of jump intervals are not one step on an instant
 _MAX_INVERSE_TAIL = 1_000_000  # samples of the inverse's impulse response for its noise gain
+_MAX_NOISE_RAISES = 6  # refits with the noise level raised (see fit_smoother)
+_NOISE_RAISE = 10.0  # factor per refit
 _SNAP = 4  # grid points (10 % of Ts): a step this close to an instant sits on it
 _GRID_CHI2 = 6.635  # chi2(1 dof) 99 % quantile: the step-at-a-sample tests
 _UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
@@ -136,6 +138,16 @@ def _as_sigma(noise_std: float | Sequence[float] | None) -> tuple[float, float] 
     values = np.broadcast_to(np.asarray(noise_std, dtype=float), (2,))
     if not np.all(np.isfinite(values)) or np.any(values < 0.0):
         raise ValueError(f"reconstruct_pair: noise_std must be finite and >= 0, got {noise_std}")
+    return float(values[0]), float(values[1])
+
+
+def _as_static(static: Sequence[float]) -> tuple[float, float]:
+    values = np.asarray(static, dtype=float)
+    if values.shape != (2,) or not np.all(np.isfinite(values)) or not values[0] > 0.0:
+        raise ValueError(
+            f"reconstruct_pair: relative_static must be (gain_ratio > 0, offset), finite, "
+            f"got {static!r}"
+        )
     return float(values[0]), float(values[1])
 
 
@@ -195,6 +207,19 @@ def resolvable_stages(
     if len(heat) == 2 and min(heat + cool) < limit:
         heat, cool = (heat[0] + heat[1],), (cool[0] + cool[1],)
     return tuple(max(t, limit) for t in heat), tuple(max(t, limit) for t in cool)
+
+
+def _unresolved_lag(
+    taus: Sequence[float], taus_cool: Sequence[float] | None, ts: float
+) -> float:
+    """Seconds of lag :func:`resolvable_stages` leaves unmodelled (the largest over heating
+    and cooling): a merged stage's time constant, or what a single stage was raised by."""
+    lags = []
+    for given in (tuple(taus), tuple(taus_cool) if taus_cool is not None else tuple(taus)):
+        heat, _ = resolvable_stages(given, ts)
+        merged = min(given) if len(heat) < len(given) else 0.0
+        lags.append(merged + abs(sum(heat) - sum(given)))
+    return max(lags)
 
 
 # --------------------------------------------------------------------------------------------
@@ -608,6 +633,30 @@ class _GasFit:
             self.converged = True
 
 
+def _fit_gas_models(
+    model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str
+) -> list[_GasFit]:
+    """rw first: it places the steps as single increments; irw starts from its weights (from
+    all-equal weights irw smears a step into a ramp and the reweighting keeps it)."""
+    fits = [_GasFit(model_for("rw"), yc, sigma)]
+    fits[0].iterate(_MAX_ROUNDS)
+    if gas != "rw":
+        jumps = np.minimum(fits[0].best[2], 1.0)
+        irw = _GasFit(model_for("irw"), yc, sigma, initial_weights=jumps)
+        irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
+        fits = [*fits, irw] if gas == "auto" else [irw]
+    return fits
+
+
+def _longest_jump_run(lam: np.ndarray) -> int:
+    """Most consecutive intervals weighted as jumps (below ``_JUMP_WEIGHT`` of the median)."""
+    if lam.size == 0:
+        return 0
+    jump = np.concatenate(([0], (lam < _JUMP_WEIGHT * float(np.median(lam))).astype(np.int8), [0]))
+    edges = np.flatnonzero(np.diff(jump))
+    return int(np.max(edges[1::2] - edges[::2])) if edges.size else 0
+
+
 def fit_smoother(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -635,6 +684,10 @@ def fit_smoother(
     offset = float(np.mean(y))
     yc = y - offset  # states relative to the record's mean: better conditioned sums
     stages = [resolvable_stages(taus[i], float(ts), cool[i]) for i in range(2)]
+    for i in range(2):
+        # a merged or raised stage errs by ~ its lag times the output's rate: noise to the model
+        rate = float(np.sqrt(np.mean(np.diff(y[:, i]) ** 2))) / float(ts)
+        sigma[i] = math.hypot(sigma[i], _unresolved_lag(taus[i], cool[i], float(ts)) * rate)
 
     def model_for(name: str) -> PairModel:
         return pair_model(
@@ -646,19 +699,17 @@ def fit_smoother(
             taus2_cool=stages[1][1],
         )
 
-    # rw first: it places the steps as single increments; irw starts from its weights
-    # (from all-equal weights irw smears a step into a ramp and the reweighting keeps it)
-    fits = [_GasFit(model_for("rw"), yc, sigma)]
-    fits[0].iterate(_MAX_ROUNDS)
-    if gas != "rw":
-        jumps = np.minimum(fits[0].best[2], 1.0)
-        irw = _GasFit(model_for("irw"), yc, sigma, initial_weights=jumps)
-        irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
-        fits = [*fits, irw] if gas == "auto" else [irw]
-    chosen = min(fits, key=lambda f: f.best[0])
-    nll, log_q, lam, modes, x = chosen.best
-    if not math.isfinite(nll):
-        raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
+    for _ in range(_MAX_NOISE_RAISES + 1):
+        fits = _fit_gas_models(model_for, yc, sigma, gas)
+        chosen = min(fits, key=lambda f: f.best[0])
+        nll, log_q, lam, modes, x = chosen.best
+        if not math.isfinite(nll):
+            raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
+        if _longest_jump_run(lam) <= _MAX_JUMP_REGION:
+            break
+        # the model needs runs of jumps: it disagrees with the samples by more than the
+        # noise (e.g. time constants a little off on noise-free data); that is noise to it
+        sigma = sigma * _NOISE_RAISE
     return SmootherFit(
         model=chosen.model,
         q=math.exp(log_q),
@@ -829,17 +880,30 @@ def reconstruct_pair(
     noise_std: float | Sequence[float] | None = None,
     taus1_cool: float | Sequence[float] | None = None,
     taus2_cool: float | Sequence[float] | None = None,
+    relative_static: tuple[float, float] | None = None,
 ) -> np.ndarray:
     """Gas temperature at the sample instants (NaN where it cannot be formed).
 
     ``taus1``/``taus2``: each sensor's time constants (1 or 2; heating ones when hysteretic),
     ``taus*_cool``: cooling time constants (same count) for hysteretic sensors. ``noise_std``:
     one value, one per sensor, or None to estimate it. ``mode``: smoother (offline, default),
-    filter (causal, as on the ECU), inverse (the paper's exact inverse, weighted).
+    filter (causal, as on the ECU), inverse (the exact inverse of each sampled sensor,
+    weighted). ``relative_static``: ``(gain_ratio, offset)`` of sensor 2 relative to sensor 1
+    as ``characterise_pair`` reports them (``details``, affine static model
+    ``P1 T1 = g P2 T2 + o``): sensor 2's samples are first mapped to sensor 1's calibration,
+    ``g T2 + o``, and the result is the gas temperature as sensor 1 reads it (its gain times
+    Tg plus its offset; two sensors alone cannot tell their common calibration). Without it
+    both sensors are taken as unit-gain, zero-offset (design.md).
     """
     if mode not in MODES:
         raise ValueError(f"reconstruct_pair: mode must be one of {', '.join(MODES)}, got {mode!r}")
     y = _check_signals(t1, t2, ts)
+    sigma = _as_sigma(noise_std)
+    if relative_static is not None:
+        gain, offset = _as_static(relative_static)
+        y[:, 1] = gain * y[:, 1] + offset
+        if sigma is not None:
+            sigma = (sigma[0], gain * sigma[1])
     taus = (_as_taus("taus1", taus1), _as_taus("taus2", taus2))
     if taus[0] is None or taus[1] is None:
         raise ValueError("reconstruct_pair: taus1 and taus2 are required")
@@ -851,7 +915,6 @@ def reconstruct_pair(
                 f"reconstruct_pair: taus{i + 1}_cool needs {len(taus[i])} time constants"
             )
     cool_full = (cool[0] or taus[0], cool[1] or taus[1])
-    sigma = _as_sigma(noise_std)
     if mode == "inverse":
         return _inverse(y, float(ts), (taus[0], taus[1]), cool_full, sigma)
     fit = fit_smoother(
