@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -388,6 +389,255 @@ def test_quantised_noise_free_data() -> None:
 
 
 # --------------------------------------------------------------------------------------------
+# Regressions: fast stages, noise-free data, steps on the sample grid, inverse, gains, CLI
+# --------------------------------------------------------------------------------------------
+
+
+def _study(
+    taus1: tuple[float, ...], taus2: tuple[float, ...], noise: float = 0.0, seed: int = 0
+) -> simulate.PairRecording:
+    """The paper's studies: 100 K step ON the grid at t = 10 s, 10 Hz, 200 s."""
+    profile = simulate.step_profile(10.0, 20.0, 120.0)
+    return simulate.simulate_pair(
+        profile,
+        simulate.SensorModel(taus1),
+        simulate.SensorModel(taus2),
+        ts=0.1,
+        duration=200.0,
+        noise_std=noise,
+        rng=seed,
+    )
+
+
+def _rmse_all(estimate: np.ndarray, truth: np.ndarray) -> float:
+    """RMSE over every sample, the step's own included (right-continuous truth)."""
+    return math.sqrt(float(np.mean((estimate - truth) ** 2)))
+
+
+def test_resolvable_stages_merge_what_the_samples_cannot_resolve() -> None:
+    def stages(*args: object) -> list[list[float]]:
+        heat, cool = reconstruction.resolvable_stages(*args)  # type: ignore[arg-type]
+        return [list(heat), list(cool)]
+
+    ts = 0.1
+    close = pytest.approx  # sums of time constants: exact up to rounding
+    # a stage below Ts/20 is merged into the other one, the sum of the time constants kept
+    assert stages((28.95, 0.001), ts) == [[close(28.951)], [close(28.951)]]
+    assert stages((0.004, 12.0), ts, (0.003, 15.0)) == [[close(12.004)], [close(15.003)]]
+    # resolvable stages are kept as given; a lone stage is raised to Ts/20 at least
+    assert stages((25.72, 1.08), ts) == [[25.72, 1.08], [25.72, 1.08]]
+    assert stages((12.30, 0.17), ts) == [[12.30, 0.17], [12.30, 0.17]]
+    assert stages((0.001,), ts) == [[close(0.005)], [close(0.005)]]
+
+
+@pytest.mark.parametrize("a_p", [0.0001, 0.001, 0.003, 0.01])
+def test_noise_free_study_a_with_a_fast_pole_through_characterise(a_p: float) -> None:
+    """The defect: a_p = 0.001 s at Ts = 0.1 s broke the smoother ("no usable gas
+    intensity", exit 2 of `characterise --order 2`). Now every sample, the step's included,
+    is reconstructed from the identified time constants."""
+    from dualprobe.estimation import characterise_pair
+
+    rec = _study((12.48,), (28.95, a_p))
+    est = characterise_pair(rec.t1, rec.t2, rec.ts, order=2)
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, *est.time_constants, noise_std=est.noise_std)
+    exact = reconstruct_pair(rec.t1, rec.t2, rec.ts, (12.48,), (28.95, a_p))
+    print(f"a_p {a_p}: identified {est.time_constants}, RMSE {_rmse_all(gas, rec.tg):.2e} K, "
+          f"true taus {_rmse_all(exact, rec.tg):.2e} K")
+    # identified taus are 1e-5..1e-4 off; their error, not the smoother, sets this (measured
+    # 2.6e-5 to 2.1e-4 K against a 100 K step; before: 2.2 K or an exception)
+    assert _rmse_all(gas, rec.tg) < 1e-3
+    # with the true taus (the fast stage merged below Ts/20): measured 6e-9 to 1.1e-8 K
+    assert _rmse_all(exact, rec.tg) < 1e-5
+
+
+@pytest.mark.parametrize("a_p", [0.002, 0.01, 0.03])
+def test_fast_pole_with_noise_costs_nothing(a_p: float) -> None:
+    """A stage between Ts/50 and Ts/3 (kept in the model, or merged below Ts/20) with
+    0.01 K noise: the reconstruction is as good as without the stage (before: the model-error
+    floor grew as (Ts/tau)^2 and cut sensor 2 off, 5-8x worse on smooth gas)."""
+    profile = simulate.fluctuating_profile(200.0, mean=300.0, std=3.0, bandwidth=0.2, rng=5)
+    rng = np.random.default_rng(6)
+    with_stage = _pair(profile, (12.48,), (28.95, a_p), 0.1, 200.0, 0.01, rng)
+    rng = np.random.default_rng(6)
+    without = _pair(profile, (12.48,), (28.95,), 0.1, 200.0, 0.01, rng)
+    ratio = _ratio(reconstruct_pair(with_stage.t1, with_stage.t2, 0.1, (12.48,), (28.95, a_p)),
+                   with_stage)
+    plain = _ratio(reconstruct_pair(without.t1, without.t2, 0.1, (12.48,), (28.95,)), without)
+    print(f"a_p {a_p}: ratio {ratio:.4f}, without the stage {plain:.4f}")
+    assert ratio < 1.25 * plain  # same noise draws; measured within 1-5 %
+
+
+@pytest.mark.parametrize("a_p", [0.1, 1.08])
+def test_noise_free_study_b_with_true_time_constants_is_exact(a_p: float) -> None:
+    """The defect: 1.2 K on noise-free study B (irw chosen after 3 rounds, the step smeared
+    into a ramp). Now exact at every sample, the on-grid step's own included."""
+    rec = _study((12.30, 0.17), (25.72, a_p))
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, (12.30, 0.17), (25.72, a_p))
+    print(f"study B, a_p {a_p}: RMSE {_rmse_all(gas, rec.tg):.2e} K")
+    assert _rmse_all(gas, rec.tg) < 1e-5  # measured 9e-9 and 2.5e-8 K (100 K step)
+
+
+def test_noise_free_zoh_data_with_steps_on_the_grid_are_exact() -> None:
+    """Eq. 8 data, gas held over [t_k, t_k+1) with steps on the grid: the smoother returns the
+    held values at every sample (right-continuous at the steps); noise of 0.01 K costs
+    about its own size."""
+    rng = np.random.default_rng(42)
+    held = np.repeat(300.0 + rng.uniform(-150.0, 150.0, 12), 250)
+    t1, t2 = simulate.difference_equation_pair(held, 12.48, 28.95, 0.1)
+    gas = reconstruct_pair(t1, t2, 0.1, 12.48, 28.95)
+    print(f"ZOH, on-grid steps, noise-free: max error {np.max(np.abs(gas - held)):.2e} K")
+    assert np.max(np.abs(gas - held)) < 1e-5  # measured 1.8e-7 K with 100-300 K steps
+    t1 = t1 + 0.01 * rng.standard_normal(t1.size)
+    t2 = t2 + 0.01 * rng.standard_normal(t2.size)
+    gas = reconstruct_pair(t1, t2, 0.1, 12.48, 28.95)
+    print(f"ZOH, on-grid steps, 0.01 K: max error {np.max(np.abs(gas - held)):.3f} K")
+    assert np.max(np.abs(gas - held)) < 0.1  # measured 0.011 K; before: the full step
+
+
+@pytest.mark.parametrize("noise", [0.01, 0.1])
+def test_noisy_steps_on_the_grid_have_no_error_beside_them(noise: float) -> None:
+    """The defect: a 51 K error one sample after an on-grid step (study A, a_p 0.01, 0.01 K,
+    identified taus with a 0.009 s stage). Now the samples at and after each step are as good
+    as the rest."""
+    from dualprobe.estimation import characterise_pair
+
+    rng = np.random.default_rng(5)
+    times = np.round(np.cumsum(rng.uniform(40.0, 100.0, 8)) / 0.1) * 0.1
+    times = times[times < 590.0]
+    levels = 300.0 + np.cumsum(rng.choice([-1.0, 1.0], times.size + 1)
+                               * rng.uniform(100.0, 300.0, times.size + 1))
+    profile = simulate.multistep_profile(600.0, levels=levels, step_times=times)
+    rec = _pair(profile, (12.48,), (28.95, 0.01), 0.1, 600.0, noise, rng)
+    est = characterise_pair(rec.t1, rec.t2, rec.ts, order=2)
+    gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, *est.time_constants, noise_std=est.noise_std)
+    at = np.searchsorted(rec.t, rec.jumps - 1e-9)  # the samples on the steps
+    beside = np.concatenate([at, at + 1, at + 2])
+    worst = float(np.max(np.abs(gas - rec.tg)[beside]))
+    rest = float(np.max(np.abs(gas - rec.tg)[~rec.jump_mask(2)]))
+    print(f"{noise} K, on-grid steps: worst at/after a step {worst:.3f} K, elsewhere {rest:.3f}")
+    # at most the error elsewhere plus 10 noise standard deviations (measured within 0.005 K
+    # of it; before: up to the full 100-300 K step at the step and 51 K one sample after)
+    assert worst < rest + 10.0 * noise
+
+
+def test_inverse_is_exact_for_two_stage_sensors() -> None:
+    """The defect: the stage-by-stage inverse assumed each stage's input held over the
+    interval (0.25 K RMSE on study B with the true taus). Now the exact inverse of the whole
+    sampled sensor: exact except at the step's own sample (the mean of the two levels)."""
+    for a_p in (0.001, 0.1, 1.08):
+        rec = _study((12.30, 0.17), (25.72, a_p))
+        gas = reconstruct_pair(rec.t1, rec.t2, rec.ts, (12.30, 0.17), (25.72, a_p),
+                               mode="inverse")
+        keep = ~rec.jump_mask(1) & np.isfinite(gas)
+        assert np.isnan(gas[0]) and np.isnan(gas[-1]) and np.all(np.isfinite(gas[1:-1]))
+        # measured 1.4e-11 to 2.2e-11 K: rounding amplified by the inverse (~1e4)
+        assert np.max(np.abs(gas - rec.tg)[keep]) < 1e-8
+
+
+@pytest.mark.parametrize("taus", [(12.48,), (12.30, 0.17), (25.72, 1.08), (28.95, 0.001)])
+def test_zoh_inverse_of_one_sensor_is_exact_on_the_grid(taus: tuple[float, ...]) -> None:
+    rng = np.random.default_rng(1)
+    ts = 0.1
+    step_times = np.sort(rng.choice(np.arange(50, 1900), 6, replace=False)) * ts
+    profile = simulate.multistep_profile(
+        200.0, levels=300.0 + rng.uniform(-200.0, 200.0, 7), step_times=step_times
+    )
+    t = ts * np.arange(2001)
+    measured = simulate.simulate_sensor(profile, simulate.SensorModel(taus), t)
+    held = reconstruction.zoh_inverse(measured, taus, ts)
+    assert np.isnan(held[-1])
+    # exact up to rounding amplified by the inverse (measured <= 1.5e-8 K)
+    np.testing.assert_allclose(held[:-1], profile(t[:-1]), rtol=0.0, atol=1e-6)
+    beyond = pytest.importorskip("dualprobe.beyond")
+    if hasattr(beyond, "zoh_inverse"):  # one implementation: the same numbers while both exist
+        np.testing.assert_allclose(held, beyond.zoh_inverse(measured, taus, ts), atol=1e-7)
+
+
+def test_zoh_inverse_of_a_hysteretic_sensor_is_exact_on_the_grid() -> None:
+    """First-order sensor heating faster than cooling, gas held over each interval: the mode
+    follows from the samples, the inverse is exact."""
+    rng = np.random.default_rng(3)
+    ts = 0.1
+    t = ts * np.arange(2001)
+    profile = simulate.multistep_profile(
+        200.0, levels=300.0 + rng.uniform(-100.0, 100.0, 9),
+        step_times=np.sort(rng.choice(np.arange(20, 1950), 8, replace=False)) * ts,
+    )
+    measured = simulate.simulate_hysteretic_sensor(profile, 12.0, 16.0, t)
+    held = reconstruction.zoh_inverse(measured, 12.0, ts, taus_cool=16.0)
+    plain = reconstruction.zoh_inverse(measured, 12.0, ts)
+    # rounding amplified by tau/Ts (measured ~1e-9); ignoring the cooling constant: kelvins
+    np.testing.assert_allclose(held[:-1], profile(t[:-1]), rtol=0.0, atol=1e-6)
+    assert np.nanmax(np.abs(plain - profile(t))) > 1.0
+
+
+def test_relative_static_model_refers_the_gas_to_sensor_1() -> None:
+    """Gains 0.99 / 1.03 (paper Tables I/II) and a 2 K offset on sensor 2: with the gain ratio
+    and offset that characterise_pair identifies, the reconstruction is sensor 1's reading of
+    the gas (0.99 Tg); with unit gains assumed it is off by kelvins."""
+    from dualprobe.estimation import characterise_pair
+
+    rng = np.random.default_rng(3)
+    rec = simulate.simulate_pair(
+        _step_profile(600.0, rng),
+        simulate.SensorModel(PT100_FAST, gain=0.99),
+        simulate.SensorModel(PT100_SLOW, gain=1.03),
+        ts=0.1,
+        duration=600.0,
+        noise_std=0.05,
+        rng=4,
+    )
+    t2 = rec.t2 + 2.0
+    est = characterise_pair(rec.t1, t2, rec.ts, static_model="affine")
+    static = (float(est.details["gain_ratio"]), float(est.details["offset"]))
+    assert static[0] == pytest.approx(0.99 / 1.03, rel=1e-3)  # identified, not given
+    keep = ~rec.jump_mask(2)
+    sensor1 = 0.99 * rec.tg
+    scale = math.sqrt(float(np.mean((rec.t1 - sensor1)[keep] ** 2)))
+
+    def error(gas: np.ndarray) -> float:
+        return math.sqrt(float(np.mean((gas - sensor1)[keep] ** 2))) / scale
+
+    referred = error(reconstruct_pair(rec.t1, t2, rec.ts, *est.time_constants,
+                                      relative_static=static))
+    unit = error(reconstruct_pair(rec.t1, t2, rec.ts, *est.time_constants))
+    print(f"gains 0.99/1.03, offset 2 K: ratio {referred:.2e} referred, {unit:.3f} unit gains")
+    assert referred <= 0.02  # the issue's aim holds (measured 1.5e-4)
+    assert unit > 10.0 * referred  # measured 0.15: the gains matter
+
+
+def test_characterise_reports_a_failed_reconstruction_as_estimation_error(
+    monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """A reconstruction that fails on valid input is exit 3 (estimation), never 2 (input)."""
+    from dualprobe import characterise
+    from dualprobe.cli import main
+    from dualprobe.io import EstimationError
+
+    rec = _study((12.48,), (28.95,), noise=0.01, seed=1)
+
+    def failing(*args: object, **kwargs: object) -> np.ndarray:
+        raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
+
+    monkeypatch.setattr(reconstruction, "reconstruct_pair", failing)
+    with pytest.raises(EstimationError, match=r"reconstruction \(smoother\) .*failed"):
+        characterise.characterise_arrays(rec.t1, rec.t2, rec.ts)
+    path = tmp_path / "pair.csv"
+    rec.to_csv(path)
+    assert main(["characterise", str(path), "--reference", "T_g"]) == 3
+
+
+def test_characterise_order_2_on_study_a_exits_0(tmp_path: Path) -> None:
+    """The reported command: `dualprobe characterise --order 2` on noise-free study A at
+    a_p = 0.001 s exited with status 2."""
+    from dualprobe.cli import main
+
+    path = tmp_path / "study_a.csv"
+    _study((12.48,), (28.95, 0.001)).to_csv(path)
+    assert main(["characterise", str(path), "--order", "2", "--reference", "T_g"]) == 0
+
+
+# --------------------------------------------------------------------------------------------
 # Bad input
 # --------------------------------------------------------------------------------------------
 
@@ -402,6 +652,8 @@ def test_quantised_noise_free_data() -> None:
         ({"taus1_cool": (1.0, 2.0)}, "taus1_cool needs 1 time constants"),
         ({"noise_std": -0.1}, "noise_std must be finite and >= 0"),
         ({"ts": 0.0}, "ts must be finite and > 0"),
+        ({"relative_static": (0.0, 1.0)}, "relative_static must be"),
+        ({"relative_static": (1.0, float("nan"))}, "relative_static must be"),
     ],
 )
 def test_bad_arguments_raise_value_error(kwargs: dict[str, object], message: str) -> None:
