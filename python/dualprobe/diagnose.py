@@ -34,7 +34,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -89,9 +89,9 @@ MIN_EFFECT_SIZE = {
     "offset": 0.1,  # K
     "nonlinearity": 0.2,  # K: deviation of the curvature term from a straight line over the data
 }
-# Half a sample of delay is the difference between holding the reference (paper eq. 8) and
-# interpolating it; a dead time must exceed that convention to be a transport delay.
-DEAD_TIME_MIN_SAMPLES = 0.75
+# A dead time under half a sample cannot be told from where within the sample interval the gas
+# changed (interpolation puts every change mid-interval).
+DEAD_TIME_MIN_SAMPLES = 0.5
 # Heating / cooling regime: the sensor is "after a change" while the gas differs from the
 # simulated sensor by more than this many output noise standard deviations (and 0.2 K).
 REGIME_THRESHOLD_NOISE = 5.0
@@ -181,20 +181,51 @@ def _delayed(u: np.ndarray, delay_samples: float) -> np.ndarray:
     return (1.0 - frac) * now + frac * before
 
 
+def _first_order_zoh(
+    u: np.ndarray, ts: float, tau: float, initial: float, delay: float
+) -> np.ndarray:
+    """Exact response of exp(-delay s)/(1 + tau s) to the input held over each sample interval
+    (paper eq. 8 when delay = 0): with delay = (n + f) ts the held value changes a fraction f
+    into the interval, x(k) = a x(k-1) + c1 u(k-1-n) + c2 u(k-2-n)."""
+    h = ts / tau
+    a = math.exp(-h)
+    whole = math.floor(delay / ts)
+    frac = delay / ts - whole
+    late = math.exp(-(1.0 - frac) * h)
+    c1 = 1.0 - late
+    c2 = late - a
+    index = np.arange(u.size) - whole
+    drive = c1 * u[np.clip(index, 0, None)]
+    if c2 != 0.0:
+        drive = drive + c2 * u[np.clip(index - 1, 0, None)]
+    out, _ = signal.lfilter([0.0, 1.0], [1.0, -a], drive, zi=np.array([initial]))
+    return out
+
+
 def _dynamics(u: np.ndarray, ts: float, p: Mapping[str, float]) -> np.ndarray:
-    """Sensor temperature x (before the static map) for the parameter set `p`."""
-    v = _delayed(u, p.get("delay", 0.0) / ts)
+    """Sensor temperature x (before the static map) for the parameter set `p`.
+
+    The reference is interpolated linearly between samples, or held over each sample interval
+    when ``p["input_hold"]`` is set (data that follow the paper's eq. 8 exactly)."""
+    delay = p.get("delay", 0.0)
     initial = p["initial"]
+    hold = bool(p.get("input_hold", 0.0))
     if "tau_heat" in p:
-        # The core loop holds the gas over each interval; feeding it the interval mean of the
-        # interpolated reference makes it the same (to O(ts/tau)^2) as the linear models.
-        mid = np.empty_like(v)
-        mid[:-1] = 0.5 * (v[:-1] + v[1:])
-        mid[-1] = v[-1]
-        x = simulate_hysteretic(mid, ts, p["tau_heat"], p["tau_cool"], initial)
+        v = _delayed(u, delay / ts)
+        if not hold:
+            # The core loop holds the gas over each interval; feeding it the interval mean of
+            # the interpolated reference makes it the same (to O(ts/tau)^2) as the linear model.
+            mid = np.empty_like(v)
+            mid[:-1] = 0.5 * (v[:-1] + v[1:])
+            mid[-1] = v[-1]
+            v = mid
+        x = simulate_hysteretic(v, ts, p["tau_heat"], p["tau_cool"], initial)
+    elif hold:
+        x = _first_order_zoh(u, ts, p["tau"], initial, delay)
     else:
-        x = _first_order_foh(v, ts, p["tau"], initial)
+        x = _first_order_foh(_delayed(u, delay / ts), ts, p["tau"], initial)
     if "tau2" in p:
+        # the first stage's output is smooth: interpolating it is accurate in either case
         x = _first_order_foh(x, ts, p["tau2"], initial)
     return x
 
@@ -214,7 +245,8 @@ def simulate_effects(reference: np.ndarray, ts: float, params: Mapping[str, floa
     """Simulated sensor output for a parameter set as reported by :func:`diagnose`.
 
     Keys: ``initial`` and ``tau`` (or ``tau_heat`` and ``tau_cool``), optional ``tau2``,
-    ``delay`` (s), ``gain``, ``offset`` (K), ``curvature`` (1/K)."""
+    ``delay`` (s), ``gain``, ``offset`` (K), ``curvature`` (1/K), and ``input_hold`` = 1 when
+    the reference is held over each sample interval (paper eq. 8) instead of interpolated."""
     u = np.asarray(reference, dtype=float)
     x = _dynamics(u, ts, params)
     return (
@@ -330,6 +362,8 @@ class _Problem:
         self.y = y
         self.ts = ts
         self.duration = ts * (u.size - 1)
+        # parameters not fitted but chosen once for the data (the input sampling convention)
+        self.fixed: dict[str, float] = {}
         self.y_spread = math.sqrt(_dot(y - y.mean(), y - y.mean()))
 
     def static_solve(
@@ -358,8 +392,14 @@ class _Problem:
             static[name] = float(value) + (1.0 if name == "gain" else 0.0)
         return residual, static
 
+    def with_fixed(self, p: Mapping[str, float]) -> dict[str, float]:
+        """`p` under this problem's sampling convention (whatever `p` was fitted under)."""
+        out = {k: v for k, v in p.items() if k != "input_hold"}
+        out.update(self.fixed)
+        return out
+
     def residual(self, effects: Sequence[str], p: Mapping[str, float]) -> np.ndarray:
-        x = _dynamics(self.u, self.ts, p)
+        x = _dynamics(self.u, self.ts, self.with_fixed(p))
         return self.static_solve(x, effects)[0]
 
     def sse(self, effects: Sequence[str], p: Mapping[str, float]) -> float:
@@ -367,6 +407,7 @@ class _Problem:
         return _dot(r, r)
 
     def make_fit(self, effects: Sequence[str], p: Mapping[str, float]) -> ModelFit:
+        p = self.with_fixed(p)
         x = _dynamics(self.u, self.ts, p)
         residual, static = self.static_solve(x, effects)
         params = dict(p)
@@ -388,6 +429,7 @@ _PARAM_ORDER = (
     "offset",
     "curvature",
     "initial",
+    "input_hold",
 )
 
 
@@ -1073,16 +1115,36 @@ def diagnose(
         for tau in np.geomspace(0.3 * ts, 0.2 * problem.duration, 24)
     ]
     baseline = fit_model(problem, (), _best_of(problem, (), scan, 2))
-    say(f"baseline: tau {baseline.tau:.4g} s, RMSE {baseline.rmse:.4g} K")
-
     h = ts / baseline.tau
     noise_gain = -math.expm1(-h) / (1.0 + math.exp(-h))  # output variance / white input variance
     white_floor = sigma_y**2 + noise_gain * sigma_u**2
-    floor = white_floor + sampling_floor(u, ts, baseline.tau, sigma_u)
+    jitter = sampling_floor(u, ts, baseline.tau, sigma_u)
     x_range = tuple(np.quantile(y, [0.01, 0.99]))
-    judge = _Judge(problem, floor, white_floor, (float(x_range[0]), float(x_range[1])))
+    judge = _Judge(
+        problem, white_floor + jitter, white_floor, (float(x_range[0]), float(x_range[1]))
+    )
     judge.set_steady(baseline)
     sigma = math.sqrt(white_floor)
+
+    def convention(fit: ModelFit) -> ModelFit:
+        """Sampling convention: the reference interpolated between samples (continuous gas) or
+        held over each interval (data that follow the paper's eq. 8): same parameters, the better
+        fit wins. Re-decided with every model, since a large missing effect can hide the
+        half-sample difference. Gas changes between samples leave a residue (the sampling
+        floor) only when the reference is interpolated."""
+        saved = problem.fixed
+        problem.fixed = {} if saved else {"input_hold": 1.0}
+        other = fit_model(problem, fit.effects, [fit.params])
+        if other.rmse < fit.rmse:
+            fit = other
+        else:
+            problem.fixed = saved
+        judge.floor = white_floor + (0.0 if problem.fixed else jitter)
+        return fit
+
+    baseline = convention(baseline)
+    judge.set_steady(baseline)
+    say(f"baseline: tau {baseline.tau:.4g} s, RMSE {baseline.rmse:.4g} K")
 
     # 2-4. Greedy forward search.
     current = baseline
@@ -1109,11 +1171,24 @@ def diagnose(
                 )
                 say(f"+ {effect} (jointly): RMSE {current.rmse:.4g} -> {fit.rmse:.4g} K")
                 current = fit
-            continue
-        fit, evidence = candidates[winner]
-        steps.append(_make_step(winner, current, fit, evidence, candidates, table, u, t, ts, sigma))
-        say(f"+ {winner}: RMSE {current.rmse:.4g} -> {fit.rmse:.4g} K")
-        current = fit
+        else:
+            fit, evidence = candidates[winner]
+            steps.append(
+                _make_step(winner, current, fit, evidence, candidates, table, u, t, ts, sigma)
+            )
+            say(f"+ {winner}: RMSE {current.rmse:.4g} -> {fit.rmse:.4g} K")
+            current = fit
+        rechecked = convention(current)
+        if rechecked is not current:
+            current = rechecked
+            before = steps[-2].model if len(steps) > 1 else baseline
+            steps[-1] = replace(
+                steps[-1],
+                model=current,
+                rmse_after=current.rmse,
+                params=_effect_params(steps[-1].effect, current),
+                where=_where(before, current, u, t, ts, sigma),
+            )
 
     # Backward check: an effect made redundant by a later one is dropped and the ladder rebuilt.
     dropped: list[str] = []
@@ -1138,7 +1213,7 @@ def diagnose(
         measured=y,
         sample_interval=ts,
         noise_std=(sigma_u, sigma_y),
-        noise_floor=floor,
+        noise_floor=judge.floor,
         baseline=baseline,
         steps=tuple(steps),
         final=final,
