@@ -6,6 +6,10 @@ template class DifferenceEstimator<float>;
 template class DifferenceEstimator<double>;
 template class InverseReconstructor<float>;
 template class InverseReconstructor<double>;
+template class KalmanReconstructor<float, 3>;
+template class KalmanReconstructor<double, 3>;
+template class KalmanReconstructor<float, 6, 16>;
+template class KalmanReconstructor<double, 6, 16>;
 }  // namespace dualprobe
 
 float no_exceptions_check_entry(float t1, float t2) {

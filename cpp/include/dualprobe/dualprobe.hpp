@@ -4,6 +4,7 @@
 #include "dualprobe/difference_estimator.hpp"
 #include "dualprobe/first_order.hpp"
 #include "dualprobe/gtls.hpp"
+#include "dualprobe/kalman.hpp"
 #include "dualprobe/reconstruct.hpp"
 #include "dualprobe/scatter.hpp"
 #include "dualprobe/simulation.hpp"
