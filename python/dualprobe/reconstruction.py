@@ -13,31 +13,80 @@ of the whole trajectory are block-tridiagonal, bandwidth 2n - 1: LAPACK ``dpbtrf
 the Student-t prior by iteratively reweighted least squares (weights ``(nu + n)/(nu + m_k^2)``,
 m_k^2 the Mahalanobis size of increment k). Chosen from the data, nothing tuned by hand:
 
-* the noise level of each sensor, when not given: MAD of its third differences;
+* the noise level of each sensor, when not given: MAD of its third differences, floored at
+  1e-9 of the signal scale; plus, per sensor, the lag of a stage merged away (below) times
+  the RMS rate of its output (the merged model's own error, ~ that lag x dT/dt);
 * the gas intensity q: start at the maximum of the Gaussian model's marginal likelihood
   (exact, from the same banded Cholesky: ``-log p(y) = J(x_hat) + 1/2 log det A -
   N n/2 log 2 pi``); then rounds of (weights from the current increments, one safeguarded
   Newton step on log q of that likelihood with the weights co-moving with q) until the
-  trajectory changes by less than 1 % of the noise (at most 25 rounds; the best round kept);
-* rw or irw: each gets 3 rounds, the one with the higher likelihood is finished (steps and
-  plateaus favour rw, ramps and smooth motion irw).
+  trajectory changes by less than 1 % of the noise or the best nll gains less than 1 over two
+  rounds (at most 25 rounds; the best round kept);
+* rw or irw: rw is fitted first, then irw starting from rw's weights where they mark jumps
+  (min(weight, 1)): from all-equal weights irw smears a step into a ramp and the reweighting
+  keeps it there (1.2 K on noise-free study B). The better marginal likelihood wins; irw is
+  abandoned once it cannot reach rw's at its recent rate of improvement. (Choosing after 3
+  rounds, as before, picked irw on noise-free data whose nll was still falling by 1e4.)
+* the noise level once more: if the chosen fit needs a run of more than ``_MAX_JUMP_REGION``
+  consecutive jump intervals, the model disagrees with the samples by more than the noise
+  (typically identified time constants 1e-5 off on noise-free data); that disagreement is
+  noise to the model, so the noise level is raised 10x and the fit repeated (at most 6 x).
+
+Fast stages. A stage much faster than the sample interval is unresolvable in the samples:
+after a few of its own time constants it acts as a sub-sample delay. The Van Loan
+discretisation of :func:`dualprobe.reference.kalman.pair_model` (``expm`` of a matrix holding
+``-F``) loses digits below tau = Ts/30 and breaks down below ~Ts/60 (measured: unit process
+covariance exact to 1e-16 at Ts/20, 1e-9 at Ts/50, eigenvalue -2e15 at Ts/100, for one and
+two second-order sensors, rw and irw). So the model-based modes merge a second stage faster
+than ``STAGE_MERGE_FRACTION`` Ts = Ts/20 into the sensor's other stage with the SUM of the time
+constants kept (:func:`resolvable_stages`): that keeps the first moment of the impulse
+response (the lag on a ramp) exactly; what remains, ``-a b s^2 / ((1 + a s)(1 + b s)(1 + (a +
+b) s))``, is at most ~b/a of a step in the sensor output (0.002 s / 25 s of a 100 K step:
+0.008 K) and is taken as noise (above). A lone stage faster than Ts/20 is raised to it.
+Faster stages above Ts/20 stay in the exact model; for them the model-error floor of
+``PairModel.floor`` grows as (Ts/tau)^2 and cut sensor 2 off the gas (a_p = 0.002-0.02 s at
+10 Hz, 0.01 K, smooth gas: up to 8x worse than without the stage), so the smoother uses its own
+floor with ``1 - exp(-Ts/tau)`` instead of Ts/tau (:func:`_process_floor`; the same for tau >>
+Ts). The causal filter runs :func:`~dualprobe.reference.kalman.kalman_filter` as it is (its
+floor, the merged stages).
+
+Steps on a sample instant (right-continuity). A gas step exactly at t_k (the paper's studies,
+zero-order-hold data) leaves the outputs at t_k untouched; the samples cannot tell it from a
+step just after t_k, and the smoother's value at t_k is the level before. The gas is taken
+right-continuous (as :class:`dualprobe.simulate.GasProfile` and eq. 8's held input), so each
+jump region (consecutive intervals weighted as jumps) is tested for one step at an instant
+(:func:`_steps_at_samples`: exact step response of the continuous model against the outputs,
+chi-square tests; a position within 10 % of Ts of the instant counts as on it, since
+slightly wrong time constants shift it by a few %). Where it passes, the samples from the
+instant on carry the level after the step (``SmootherFit.steps_at_samples``). Off-grid steps
+are unaffected; the samples beside any step remain the uncertain ones.
 
 ``mode="filter"`` (causal, as on the ECU): the Kalman filter of
-:func:`dualprobe.reference.kalman.kalman_filter` with GLR jump detection, run with the gas model
-and the background intensity (q / median weight) that the smoother identified on the record
-(on an ECU these are configuration constants).
+:func:`dualprobe.reference.kalman.kalman_filter` with GLR jump detection, run with the gas model,
+the merged stages, the noise levels and the background intensity (q / median weight) that the
+smoother identified on the record (on an ECU these are configuration constants). Causal: at a
+step on an instant it reports the level before (the samples show nothing yet).
 
-``mode="inverse"``: the paper's exact inverse (design 1.3) of each sensor, generalised to the
-sensor's stages and aligned to the sample instants (mean of the two ZOH values around t_k),
-combined with inverse-variance weights; NaN at the first and last sample of each stage.
+``mode="inverse"``: the exact inverse of each whole ZOH-sampled sensor (:func:`zoh_inverse`,
+the paper's eq. 8 inverse generalised to 1 or 2 stages: exact when the gas is constant over
+each interval, however fast a stage), aligned to the sample instants (mean of the two held
+values around t_k) and combined with inverse-variance weights (the aligned inverse's noise
+gain); NaN at the first and last sample. Its noise gain is ~tau/Ts per sensor (10^4-10^7 for
+second-order Pt-100s at 10 Hz): the noisy comparison.
 
 Hysteresis (``taus*_cool``): each stage uses its cooling time constant while its input is
 below its state; the smoother re-evaluates the modes on its own trajectory until they settle.
+
+Static gains (``relative_static``): the sensors are unit-gain by default (design.md). The
+paper's Pt-100s have 0.99 and 1.03; ``characterise_pair`` can identify the ratio and an
+offset (affine static model); with them sensor 2 is referred to sensor 1's calibration and
+the reconstruction is sensor 1's reading of the gas (its gain and offset cannot be told from
+two sensors alone).
 """
 
 from __future__ import annotations
 
-import itertools
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -733,6 +782,11 @@ def fit_smoother(
 def _stage_zoh(taus: Sequence[float], ts: float) -> tuple[np.ndarray, np.ndarray]:
     """Exact ZOH discretisation of a chain of first-order stages (the first sees the input):
     ``z(k+1) = Phi z(k) + Gamma u(k)``."""
+    return _stage_zoh_cached(tuple(float(t) for t in taus), float(ts))
+
+
+@functools.lru_cache(maxsize=64)
+def _stage_zoh_cached(taus: tuple[float, ...], ts: float) -> tuple[np.ndarray, np.ndarray]:
     count = len(taus)
     big = np.zeros((count + 1, count + 1))
     for j, tau in enumerate(taus):
@@ -759,29 +813,66 @@ def _linear_inverse(y: np.ndarray, taus: Sequence[float], ts: float) -> np.ndarr
 def _hysteretic_inverse(
     y: np.ndarray, heat: Sequence[float], cool: Sequence[float], ts: float
 ) -> np.ndarray:
-    """As :func:`_linear_inverse` with each stage heating or cooling: the output stage by the
-    sign of (its input - its state) at the start of the interval (causal, as the filter); the
-    first stage, whose input is the unknown, exactly: the output at t_k+1 rises with u, so
-    u >= z1 (heating) iff y(k+1) is at least the value reached with u = z1."""
-    count = len(heat)
-    mats = {
-        modes: _stage_zoh([cool[j] if modes[j] else heat[j] for j in range(count)], ts)
-        for modes in itertools.product((False, True), repeat=count)
-    }
-    if count == 1:
+    """As :func:`_linear_inverse` with each stage heating while its input is above its state,
+    cooling otherwise. One stage: the mode is the sign of the output's change. Two stages:
+    the first stage, whose input is the held gas, keeps one mode over the interval (it moves
+    monotonically towards the gas); the output stage switches where the first stage crosses
+    it, at most once per interval (a lag cannot overtake its monotone input); the output at
+    t_k+1 increases with the gas, which is found by root finding when the output stage
+    switches and in closed form otherwise."""
+    if len(heat) == 1:
+        modes = {c: _stage_zoh([cool[0] if c else heat[0]], ts) for c in (False, True)}
         cooling = y[1:] < y[:-1]
-        a = np.where(cooling, mats[(True,)][0][0, 0], mats[(False,)][0][0, 0])
-        b = np.where(cooling, mats[(True,)][1][0], mats[(False,)][1][0])
+        a = np.where(cooling, modes[True][0][0, 0], modes[False][0][0, 0])
+        b = np.where(cooling, modes[True][1][0], modes[False][1][0])
         return (y[1:] - a * y[:-1]) / b
+
+    def advance(state: np.ndarray, gas: float, span: float) -> np.ndarray:
+        first_cooling = gas < state[0]
+        out_cooling = state[0] < state[1] or (state[0] == state[1] and first_cooling)
+        taus = (cool[0] if first_cooling else heat[0], cool[1] if out_cooling else heat[1])
+        phi, gamma = _stage_zoh(taus, span)
+        end = phi @ state + gamma * gas
+        if (end[0] < end[1]) == out_cooling or state[0] == state[1]:
+            return end
+        # the output stage switches where the first stage crosses it
+        def gap(t: float) -> float:
+            p, g = _stage_zoh(taus, t)
+            mid = p @ state + g * gas
+            return float(mid[0] - mid[1])
+
+        cross = scipy.optimize.brentq(gap, 0.0, span, xtol=1e-12 * span)
+        p, g = _stage_zoh(taus, cross)
+        mid = p @ state + g * gas
+        mid[1] = mid[0]
+        return advance(mid, gas, span - cross) if span - cross > 0.0 else mid
+
     u = np.empty(y.size - 1)
-    z1 = float(y[0])
+    state = np.array([y[0], y[0]], dtype=float)
     for k in range(y.size - 1):
-        out_cooling = z1 < y[k]
-        phi, gamma = mats[(False, out_cooling)]
-        boundary = (phi[1, 0] + gamma[1]) * z1 + phi[1, 1] * y[k]  # with u = z1
-        phi, gamma = mats[(bool(y[k + 1] < boundary), out_cooling)]
-        u[k] = (y[k + 1] - phi[1, 0] * z1 - phi[1, 1] * y[k]) / gamma[1]
-        z1 = phi[0, 0] * z1 + gamma[0] * u[k]
+        state[1] = y[k]
+        target = float(y[k + 1])
+
+        def miss(gas: float, start: np.ndarray = state, target: float = target) -> float:
+            return float(advance(start, gas, ts)[1] - target)
+
+        # closed form with the first stage's mode from the output reached with gas = z1 (the
+        # boundary) and the output stage's mode at the start; kept when no switch follows
+        first_cooling = miss(float(state[0])) > 0.0
+        out_cooling = bool(state[0] < state[1]) or (state[0] == state[1] and first_cooling)
+        phi, gamma = _stage_zoh(
+            (cool[0] if first_cooling else heat[0], cool[1] if out_cooling else heat[1]), ts
+        )
+        guess = (target - phi[1] @ state) / gamma[1]
+        if abs(miss(guess)) > 1e-9 * (abs(target) + 1.0):
+            low, high = guess - 1.0, guess + 1.0
+            while miss(low) > 0.0:
+                low -= 2.0 * (high - low)
+            while miss(high) < 0.0:
+                high += 2.0 * (high - low)
+            guess = scipy.optimize.brentq(miss, low, high, xtol=1e-12 * (abs(guess) + 1.0))
+        u[k] = guess
+        state = advance(state, guess, ts)
     return u
 
 
