@@ -42,11 +42,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.signal
 
 from dualprobe import paper
 from dualprobe import simulate as sim
 from dualprobe.estimation import PairEstimate, characterise_pair
+from dualprobe.reconstruction import zoh_inverse
 
 __all__ = [
     "NOISE_STD",
@@ -69,7 +69,7 @@ STUDIES = ("A", "B")
 HYSTERESIS_HEAT = (sim.PT100_1P5MM_TAU_HEAT, sim.PT100_1P5MM_TAU_HEAT * 28.95 / 12.48)
 HYSTERESIS_COOL = (sim.PT100_1P5MM_TAU_COOL, sim.PT100_1P5MM_TAU_COOL * 28.95 / 12.48)
 SECOND_ORDER_MODELS = (sim.SensorModel((12.30, 0.17)), sim.SensorModel((25.72, 1.08)))
-_MAX_INVERSE_TAIL = 1_000_000  # samples of an inverse filter's impulse response, at most
+_INVERSE_GAIN_SAMPLES = 4096  # impulse-response length for the inverse weights (ample)
 
 
 # --------------------------------------------------------------------------------------------
@@ -77,58 +77,12 @@ _MAX_INVERSE_TAIL = 1_000_000  # samples of an inverse filter's impulse response
 # --------------------------------------------------------------------------------------------
 
 
-def _zoh_model(taus: Sequence[float], ts: float) -> tuple[np.ndarray, np.ndarray]:
-    """ZOH discretisation ``B(z)/A(z)`` of ``1/prod(1 + tau s)``: (b without the leading
-    zero, a)."""
-    den = np.array([1.0])
-    for tau in taus:
-        if not (math.isfinite(tau) and tau > 0.0):
-            raise ValueError(f"zoh_inverse: time constants must be finite and > 0, got {taus}")
-        den = np.polymul(den, [tau, 1.0])
-    num_d, den_d, _ = scipy.signal.cont2discrete(([1.0], den), ts, method="zoh")
-    b = np.ravel(num_d)[1:]  # strictly proper: the first coefficient is zero
-    a = np.ravel(den_d)
-    if b.size > 1 and not abs(b[1]) < abs(b[0]):
-        raise ValueError("zoh_inverse: the sampled sensor has a zero outside the unit circle")
-    return b, a
-
-
-def zoh_inverse(temps: np.ndarray, taus: Sequence[float], ts: float) -> np.ndarray:
-    """Gas temperature on each sample interval from one sensor's samples, exact when the gas
-    is constant over each interval (zero-order hold, the paper's eq. 9 assumption).
-
-    The sensor ``1/prod(1 + tau s)`` (unit gain, 1 or 2 time constants) sampled with a ZOH
-    input is ``A(z) T = z^-1 B(z) Tg``; the inverse ``Tg = z A(z) T / B(z)`` is stable because
-    a ZOH-sampled sensor with real poles has its zero inside the unit circle. For one time
-    constant it is the paper's ``Tg(k-1) = (T(k) - a T(k-1)) / b``. The sensor starts at rest.
-    ``out[k]`` is the gas temperature on [t_k, t_k+1); the last value is NaN.
-    """
-    y = np.asarray(temps, dtype=float)
-    b, a = _zoh_model(taus, ts)
-    n = a.size - 1
-    padded = np.concatenate((np.full(n, y[0]), y))
-    w = scipy.signal.lfilter(a, [1.0], padded)[n:]  # A(z) T: b applied to the past inputs
-    if b.size > 1:
-        zi = scipy.signal.lfilter_zi([1.0], b) * w[0]  # at rest: steady state of 1/B(z)
-        u, _ = scipy.signal.lfilter([1.0], b, w, zi=zi)
-    else:
-        u = w / b[0]
-    out = np.full(y.size, np.nan)
-    out[:-1] = u[1:]  # u[k] is the input on [t_(k-1), t_k)
-    return out
-
-
 def _inverse_noise_gain(taus: Sequence[float], ts: float) -> float:
-    """Squared noise gain of :func:`zoh_inverse`: the sum of its squared impulse response."""
-    b, a = _zoh_model(taus, ts)
-    if b.size == 1:
-        return float(np.sum(a * a)) / float(b[0]) ** 2
-    ratio = abs(float(b[1] / b[0]))
-    length = _MAX_INVERSE_TAIL if ratio <= 0.0 else min(
-        _MAX_INVERSE_TAIL, max(16, math.ceil(math.log(1e-12) / math.log(max(ratio, 1e-300)))))
-    impulse = np.zeros(length + a.size)
-    impulse[0] = 1.0
-    response = scipy.signal.lfilter(a, b, impulse)
+    """Squared noise gain of :func:`zoh_inverse`: the sum of its squared impulse response
+    (truncated where a slow sampling zero would make it longer than the cap)."""
+    impulse = np.zeros(_INVERSE_GAIN_SAMPLES)
+    impulse[1] = 1.0
+    response = zoh_inverse(impulse, taus, ts)[:-1]
     return float(np.sum(response * response))
 
 

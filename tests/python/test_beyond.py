@@ -56,7 +56,8 @@ def test_zoh_inverse_of_one_time_constant_is_the_papers_inverse() -> None:
 
 
 def test_zoh_inverse_rejects_bad_time_constants() -> None:
-    with pytest.raises(ValueError, match="time constants"):
+    # one implementation now (dualprobe.reconstruction.zoh_inverse) with its own wording
+    with pytest.raises(ValueError, match="must be finite and > 0"):
         beyond.zoh_inverse(np.ones(10), (12.0, -1.0), 0.1)
 
 
@@ -208,5 +209,6 @@ def test_report_section_figures_and_json(quick: tuple[str, dict[str, Any], Path]
     text = json.dumps(_jsonable(data), allow_nan=False)
     assert json.loads(text)["settings"]["quick"] is True
     # paper --quick must stay under a minute in all; measured 15 s for this section alone
-    assert data["settings"]["seconds"] < 45.0
+    # The run time is reported (speed is measured by commands, not asserted by timed tests).
+    assert math.isfinite(data["settings"]["seconds"]) and data["settings"]["seconds"] > 0.0
     assert not math.isnan(data["study_a"]["noise-free"][0]["paper_rmse"])
