@@ -166,6 +166,18 @@ def _check_excitation(t1: np.ndarray, t2: np.ndarray, columns: tuple[str, str]) 
             )
 
 
+def _relative_static(estimate: PairEstimate) -> tuple[float, float] | None:
+    """Sensor 2's gain and offset relative to sensor 1 when the estimate found them
+    (affine static model); the reconstruction is then in sensor 1's calibration."""
+    details = estimate.details
+    if details.get("static_model") != "affine":
+        return None
+    gain, offset = details.get("gain_ratio"), details.get("offset")
+    if not isinstance(gain, (int, float)) or not isinstance(offset, (int, float)):
+        return None
+    return float(gain), float(offset)
+
+
 def characterise_arrays(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -252,6 +264,7 @@ def characterise_arrays(
                     noise_std=estimate.noise_std,
                     taus1_cool=cool[0] if hysteretic and cool is not None else None,
                     taus2_cool=cool[1] if hysteretic and cool is not None else None,
+                    relative_static=_relative_static(estimate),
                 ),
                 dtype=np.float64,
             )
