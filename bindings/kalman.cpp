@@ -120,6 +120,27 @@ std::unique_ptr<Reconstructor<S>> make_reconstructor(const dualprobe::KalmanConf
   return r;
 }
 
+// Any array-like (lists included) as an array, its dtype kept.
+py::array as_array(const py::object& value) {
+  auto out = py::array::ensure(value);
+  if (!out) {
+    PyErr_Clear();
+    throw py::value_error("signals must be array-like");
+  }
+  return out;
+}
+
+// A C-contiguous array of S (a copy only when the input is strided or of another dtype).
+template <typename S>
+Array<S> numeric(const py::array& a) {
+  auto out = Array<S>::ensure(a);
+  if (!out) {
+    PyErr_Clear();
+    throw py::value_error("signals must be numeric arrays");
+  }
+  return out;
+}
+
 template <typename S>
 std::size_t checked_length(const Array<S>& a, const Array<S>& b) {
   if (a.ndim() != 1 || b.ndim() != 1) throw py::value_error("signals must be one-dimensional");
@@ -272,8 +293,8 @@ py::dict kalman_filter(const Array<S>& t1, const Array<S>& t2, double ts,
 }
 
 constexpr const char* kFilterDoc =
-    "Causal Kalman reconstruction of a whole record (C++ core, dtype of t1/t2: float64 or "
-    "float32); returns a dict with gas, gas_variance, jump_detected_at, jump_interval, "
+    "Causal Kalman reconstruction of a whole record (C++ core; in float when t1 and t2 are "
+    "both float32, else in double); returns a dict with gas, gas_variance, jump_detected_at, jump_interval, "
     "jump_size, log_likelihood, refused.";
 
 }  // namespace
@@ -283,13 +304,27 @@ namespace dualprobe_bindings {
 void bind_kalman(pybind11::module_& m) {
   bind_class<double>(m, "KalmanReconstructor");
   bind_class<float>(m, "KalmanReconstructorF");
-  // float64 first, then float32, each only for its own dtype; then float64 with conversion.
-  m.def("kalman_filter", &kalman_filter<double>, "t1"_a.noconvert(), "t2"_a.noconvert(),
-        DUALPROBE_KALMAN_CONFIG_ARGS, kFilterDoc);
-  m.def("kalman_filter", &kalman_filter<float>, "t1"_a.noconvert(), "t2"_a.noconvert(),
-        DUALPROBE_KALMAN_CONFIG_ARGS, kFilterDoc);
-  m.def("kalman_filter", &kalman_filter<double>, "t1"_a, "t2"_a, DUALPROBE_KALMAN_CONFIG_ARGS,
-        kFilterDoc);
+  // Dispatch on dtype (not on overload matching, which would send a non-contiguous float32
+  // view to the converting float64 overload): float32 pairs run in float, all else in double.
+  m.def(
+      "kalman_filter",
+      [](const py::object& signal1, const py::object& signal2, double ts, const py::object& taus1,
+         const py::object& taus2, const py::object& sigma, double q, const std::string& gas,
+         const py::object& taus1_cool, const py::object& taus2_cool, bool detect_jumps,
+         int window, double false_alarm) {
+        const py::array t1 = as_array(signal1);
+        const py::array t2 = as_array(signal2);
+        const auto f32 = py::dtype::of<float>();
+        if (t1.dtype().is(f32) && t2.dtype().is(f32)) {
+          return kalman_filter<float>(numeric<float>(t1), numeric<float>(t2), ts, taus1, taus2,
+                                      sigma, q, gas, taus1_cool, taus2_cool, detect_jumps,
+                                      window, false_alarm);
+        }
+        return kalman_filter<double>(numeric<double>(t1), numeric<double>(t2), ts, taus1, taus2,
+                                     sigma, q, gas, taus1_cool, taus2_cool, detect_jumps, window,
+                                     false_alarm);
+      },
+      "t1"_a, "t2"_a, DUALPROBE_KALMAN_CONFIG_ARGS, kFilterDoc);
 }
 
 }  // namespace dualprobe_bindings
