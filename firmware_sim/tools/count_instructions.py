@@ -19,13 +19,14 @@ import sys
 from pathlib import Path
 
 # Phase ids of arm/bench.c (bench_phase_id) and the function each one measures. A new
-# firmware function (e.g. the causal Kalman reconstruction) is one row here plus one phase there.
+# firmware function is one row here plus one phase there.
 PHASES: dict[int, tuple[str, str]] = {
     1: ("update", "dp_diff_update_f32"),
     2: ("solve", "dp_diff_solve_f32"),
     3: ("reconstruct", "dp_recon_update_f32"),
     4: ("tick", "firmware_tick"),
     5: ("pt100_temperature", "pt100_temperature"),
+    6: ("kalman", "bench_kalman_update"),
 }
 PHASE_MARKER = "bench_phase"
 

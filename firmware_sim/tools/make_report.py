@@ -118,6 +118,8 @@ def main(argv: list[str] | None = None) -> int:
             comparisons[name] = {"matches": False, "reason": str(exc)}
 
     update = counts["update"]
+    bench_err = args.run_dir / "bench.err"
+    bench_values = target_values(bench_err.read_text()) if bench_err.exists() else {}
     report: dict[str, object] = {
         "flash_bytes": flash,
         "ram_bytes": ram,
@@ -133,8 +135,11 @@ def main(argv: list[str] | None = None) -> int:
         "solve_instructions_mean": round(float(counts["solve"]["mean"]), 1),
         "reconstruct_instructions_per_sample": round(float(counts["reconstruct"]["mean"]), 2),
         "reconstruct_instructions_max": int(counts["reconstruct"]["max"]),
-        # Slot for the causal Kalman reconstruction (per-sample cost), once it is in the core.
-        "kalman_instructions_per_sample": None,
+        # The causal Kalman reconstruction (float, first-order pair, rw gas, GLR window 64),
+        # bench samples after a warm-up that fills the window; the max includes a detection.
+        "kalman_instructions_per_sample": round(float(counts["kalman"]["mean"]), 1),
+        "kalman_instructions_max": int(counts["kalman"]["max"]),
+        "kalman_bytes": bench_values.get("kalman_bytes"),
         "tick_instructions_mean": round(float(counts["tick"]["mean"]), 1),
         "tick_instructions_max": int(counts["tick"]["max"]),
         "pt100_temperature_instructions": int(counts["pt100_temperature"]["max"]),
@@ -162,6 +167,7 @@ def main(argv: list[str] | None = None) -> int:
     for key in ("flash_bytes", "ram_bytes", "stack_bytes", "estimator_bytes",
                 "update_instructions_per_sample", "update_instructions_max", "solve_instructions",
                 "reconstruct_instructions_per_sample", "tick_instructions_mean",
+                "kalman_instructions_per_sample", "kalman_bytes",
                 "qemu_matches_host", "max_abs_error_vs_host"):
         print(f"{key:38s} {report[key]}")
     print(f"heap_symbols{'':27s}{heap}")
