@@ -12,26 +12,34 @@ import itertools
 import json
 import math
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from dualprobe import diagnose as dg
 from dualprobe.io import EstimationError
-from hidden_effects import CATALOGUE, GasSegments, conduction_chain, make_case, simulate_chain
+from hidden_effects import (
+    CATALOGUE,
+    GasSegments,
+    HiddenCase,
+    conduction_chain,
+    make_case,
+    simulate_chain,
+)
 
 # 20-40 minute records: each holds 8-30 gas changes, enough for every effect at realistic size.
 DURATIONS = (1200.0, 1800.0, 2400.0)
 
 
-def _run(effects: tuple[str, ...], seed: int) -> tuple[dg.Diagnosis, object]:
+def _run(effects: tuple[str, ...], seed: int) -> tuple[dg.Diagnosis, HiddenCase]:
     case = make_case(effects, seed, duration=DURATIONS[seed % 3])
     return dg.diagnose(case.reference, case.measured, case.ts), case
 
 
-def _explain(d: dg.Diagnosis, case: object) -> str:
+def _explain(d: dg.Diagnosis, case: HiddenCase) -> str:
     rounds = [s.candidates for s in d.steps] + [d.last_round]
-    return f"truth {case.truth}; found {d.effects}; rounds {rounds}"  # type: ignore[attr-defined]
+    return f"truth {case.truth}; found {d.effects}; rounds {rounds}"
 
 
 # --- building blocks ----------------------------------------------------------------------
@@ -146,7 +154,7 @@ def test_noise_std_of_a_smooth_signal(rng: np.random.Generator) -> None:
 def test_first_order_sensor_gets_no_effect(seed: int) -> None:
     d, case = _run((), seed)
     assert d.effects == [], _explain(d, case)
-    truth_tau = case.truth["tau"]  # type: ignore[attr-defined]
+    truth_tau = case.truth["tau"]
     # baseline recovers tau: off-grid steps and reference noise bias it by well under 2 %
     assert d.baseline.params["tau"] == pytest.approx(truth_tau, rel=0.02)
 
@@ -181,18 +189,18 @@ def test_single_hidden_effect_is_named(effect: str, seed: int) -> None:
 
 def test_named_effect_parameters_are_close_to_the_hidden_ones() -> None:
     d, case = _run(("dead_time",), 21)
-    truth = case.truth  # type: ignore[attr-defined]
+    truth = case.truth
     # continuous transport delay, reference lags 10-40 ms: within 0.1 s
     assert d.steps[0].params["delay"] == pytest.approx(truth["delay"], abs=0.1)
     d, case = _run(("gain", "offset"), 22)
-    truth = case.truth  # type: ignore[attr-defined]
+    truth = case.truth
     params = d.final.params
     # the generator adds the offset to the element before the gain: y = gain (x + offset); gain
     # and offset trade off against each other, the map itself is fixed by the data: compare it
     # over the range of levels, within 0.2 K (the residue of jumps between samples and of the
     # lagging reference biases it by ~0.1 K here; 0.2 K is under half the smallest realistic
     # offset, 1/20 of the 2 % gain error over this range)
-    levels = np.quantile(case.measured, [0.05, 0.5, 0.95])  # type: ignore[attr-defined]
+    levels = np.quantile(case.measured, [0.05, 0.5, 0.95])
     fitted = params["offset"] + params["gain"] * levels
     np.testing.assert_allclose(fitted, truth["gain"] * (levels + truth["offset"]), atol=0.2)
 
@@ -233,13 +241,13 @@ def test_json_document_has_the_issue_schema() -> None:
 
 def test_final_parameters_reproduce_the_final_simulation() -> None:
     d, case = _run(("hysteresis", "offset"), 42)
-    simulated = dg.simulate_effects(case.reference, case.ts, d.final.params)  # type: ignore[attr-defined]
+    simulated = dg.simulate_effects(case.reference, case.ts, d.final.params)
     np.testing.assert_allclose(simulated, d.final.prediction, atol=1e-9)
 
 
 def test_localisation_points_at_heating_and_cooling_asymmetry() -> None:
     d, case = _run(("hysteresis",), 43)
-    truth = case.truth  # type: ignore[attr-defined]
+    truth = case.truth
     signature = d.localisation["signatures"]
     # the baseline's single tau lies between tau_heat and tau_cool: the sensor is ahead of it
     # in the faster direction and behind in the slower one
@@ -250,9 +258,9 @@ def test_localisation_points_at_heating_and_cooling_asymmetry() -> None:
     assert d.localisation["windows"]
 
 
-def test_report_files_exist(tmp_path: object) -> None:
+def test_report_files_exist(tmp_path: Path) -> None:
     d, _ = _run(("nonlinearity",), 44)
-    report = d.write_report(tmp_path)  # type: ignore[arg-type]
+    report = d.write_report(tmp_path)
     text = report.read_text()
     for name in dg.FIGURES.values():
         path = report.parent / name

@@ -47,7 +47,8 @@ def register(subparsers: Any) -> None:
         "driven by the reference (fast) measurement of the gas temperature, localise the "
         "disagreement, and add effects from the catalogue extra_pole, hysteresis, dead_time, "
         "gain, offset, nonlinearity one at a time while each is statistically and practically "
-        "significant.",
+        "significant. Temperatures in degC (nonlinearity is the curvature of a Pt-100 read "
+        "through the linear alpha conversion).",
     )
     parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
     parser.add_argument(
