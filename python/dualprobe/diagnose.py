@@ -1213,9 +1213,12 @@ def diagnose(
             if pair is None:
                 last_round = table
                 break
+            joint = pair[-1][1]
             for effect, fit, evidence in pair:
                 steps.append(
-                    _make_step(effect, current, fit, evidence, candidates, table, u, t, ts, sigma)
+                    _make_step(
+                        effect, current, fit, evidence, candidates, table, u, t, ts, sigma, joint
+                    )
                 )
                 say(f"+ {effect} (jointly): RMSE {current.rmse:.4g} -> {fit.rmse:.4g} K")
                 current = fit
@@ -1274,7 +1277,10 @@ def _make_step(
     t: np.ndarray,
     ts: float,
     sigma: float,
+    params_from: ModelFit | None = None,
 ) -> Step:
+    """A rung of the ladder; the effect's parameters from `params_from` (the joint fit of a
+    pair) when given, else from `fit`."""
     evidence = dict(evidence)
     ranked = sorted(candidates, key=lambda e: -candidates[e][1]["gap_closed"])
     runner_up = next((e for e in ranked if e != effect), None)
@@ -1284,7 +1290,7 @@ def _make_step(
     evidence["candidates"] = table
     return Step(
         effect=effect,
-        params=_effect_params(effect, fit),
+        params=_effect_params(effect, params_from or fit),
         rmse_before=current.rmse,
         rmse_after=fit.rmse,
         evidence=_strip(evidence),
