@@ -10,6 +10,18 @@ template class KalmanReconstructor<float, 3>;
 template class KalmanReconstructor<double, 3>;
 template class KalmanReconstructor<float, 6, 16>;
 template class KalmanReconstructor<double, 6, 16>;
+template class SvfEstimator<float, 1>;
+template class SvfEstimator<double, 1>;
+template class SvfEstimator<float, 1, StaticModel::affine>;
+template class SvfEstimator<double, 1, StaticModel::affine>;
+template class SvfEstimator<float, 2>;
+template class SvfEstimator<double, 2>;
+template class SvfEstimator<float, 2, StaticModel::affine>;
+template class SvfEstimator<double, 2, StaticModel::affine>;
+template class SvfEstimator<float, 1, StaticModel::unit, true>;
+template class SvfEstimator<double, 1, StaticModel::unit, true>;
+template class SvfEstimator<float, 1, StaticModel::affine, true>;
+template class SvfEstimator<double, 1, StaticModel::affine, true>;
 }  // namespace dualprobe
 
 float no_exceptions_check_entry(float t1, float t2) {

@@ -9,3 +9,4 @@
 #include "dualprobe/scatter.hpp"
 #include "dualprobe/simulation.hpp"
 #include "dualprobe/status.hpp"
+#include "dualprobe/svf_estimator.hpp"
