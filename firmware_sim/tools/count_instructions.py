@@ -27,6 +27,7 @@ PHASES: dict[int, tuple[str, str]] = {
     4: ("tick", "firmware_tick"),
     5: ("pt100_temperature", "pt100_temperature"),
     6: ("kalman", "bench_kalman_update"),
+    7: ("kalman_configure", "bench_kalman_init"),
 }
 PHASE_MARKER = "bench_phase"
 

@@ -140,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         "kalman_instructions_per_sample": round(float(counts["kalman"]["mean"]), 1),
         "kalman_instructions_max": int(counts["kalman"]["max"]),
         "kalman_bytes": bench_values.get("kalman_bytes"),
+        "kalman_configure_instructions": int(counts["kalman_configure"]["max"]),
         "tick_instructions_mean": round(float(counts["tick"]["mean"]), 1),
         "tick_instructions_max": int(counts["tick"]["max"]),
         "pt100_temperature_instructions": int(counts["pt100_temperature"]["max"]),

@@ -105,8 +105,7 @@ class KalmanReconstructor {
   Status configure(const Config& config) noexcept {
     Layout layout;
     if (!make_layout(config, &layout)) return Status::invalid_argument;
-    if (!discretise_all(config, layout, /*commit=*/false)) return Status::invalid_argument;
-    discretise_all(config, layout, /*commit=*/true);
+    if (!discretise_all(config, layout)) return Status::invalid_argument;
     layout_ = layout;
     set_parameters(config);
     configured_ = true;
@@ -125,8 +124,7 @@ class KalmanReconstructor {
         config.order1 != config_.order1 || config.order2 != config_.order2) {
       return Status::invalid_argument;
     }
-    if (!discretise_all(config, layout, false)) return Status::invalid_argument;
-    discretise_all(config, layout, true);
+    if (!discretise_all(config, layout)) return Status::invalid_argument;
     count_ = 0;
     first_ = 0;
     layout_ = layout;
@@ -146,7 +144,8 @@ class KalmanReconstructor {
     if (!std::isfinite(t1) || !std::isfinite(t2)) return Status::non_finite_input;
     jumped_ = false;
     int mode = 0;
-    if (samples_ == 0) {
+    const bool first = !started_;
+    if (first) {
       initialise(t1, t2);
     } else {
       mode = predict();
@@ -187,12 +186,14 @@ class KalmanReconstructor {
       }
     }
     log_likelihood_ -= Scalar(0.5) * (e0 * u0 + e1 * u1 + std::log(kFourPiSquared * det));
-    if (detect_ && samples_ > 0) {
+    if (detect_ && !first) {
       glr_update(phi_[mode], gain, u0, u1, i00, i01, i11);
     }
-    ++samples_;
-    if (!std::isfinite(x_[0])) return diverged();
-    if (gas != nullptr) *gas = x_[0] + offset_;
+    started_ = true;
+    ++samples_;  // a counter for the caller and the jump report only (wraps after 2^32)
+    const Scalar out = x_[0] + offset_;
+    if (!std::isfinite(out)) return diverged();
+    if (gas != nullptr) *gas = out;
     return Status::ok;
   }
 
@@ -200,7 +201,7 @@ class KalmanReconstructor {
   // so time stays aligned; the GLR candidates age but learn nothing. Writes the predicted gas.
   // not_ready before the first sample.
   Status skip(Scalar* gas = nullptr) noexcept {
-    if (!configured_ || samples_ == 0) return Status::not_ready;
+    if (!configured_ || !started_) return Status::not_ready;
     jumped_ = false;
     const int mode = predict();
     if (detect_) {  // no measurement: the candidates only age (all but the one just added)
@@ -211,8 +212,9 @@ class KalmanReconstructor {
       }
     }
     ++samples_;
-    if (!std::isfinite(x_[0]) || !std::isfinite(p_(0, 0))) return diverged();
-    if (gas != nullptr) *gas = x_[0] + offset_;
+    const Scalar out = x_[0] + offset_;
+    if (!std::isfinite(out) || !std::isfinite(p_(0, 0))) return diverged();
+    if (gas != nullptr) *gas = out;
     return Status::ok;
   }
 
@@ -362,37 +364,54 @@ class KalmanReconstructor {
     return f;
   }
 
-  // Discretises every mode; with commit=false only checks that everything is finite in
-  // Scalar, with commit=true stores Phi_m and q Qunit_m + Qfloor (same arithmetic both times).
-  bool discretise_all(const Config& c, const Layout& l, bool commit) noexcept {
-    const double ts = double(c.sample_interval);
-    const double q = double(c.intensity);
-    const double limit = double(std::numeric_limits<Scalar>::max());
-    Eigen::Matrix<double, MaxStates, 1> floor = Eigen::Matrix<double, MaxStates, 1>::Zero();
+  // Discretises every mode into phi_/process_ (Phi_m and q Qunit_m + Qfloor) if every entry is
+  // finite in Scalar; else returns false with the members untouched. One mode (the ECU's
+  // case): computed once into locals. Several: a checking pass, then the same arithmetic again
+  // to store (the members are the only storage big enough for all modes).
+  bool discretise_all(const Config& c, const Layout& l) noexcept {
+    if (MaxModes == 1 || l.modes == 1) {
+      DoubleMatrix phi;
+      DoubleMatrix process;
+      if (!discretise_mode(c, l, 0, &phi, &process)) return false;
+      phi_[0] = phi.template cast<Scalar>();
+      process_[0] = process.template cast<Scalar>();
+      return true;
+    }
+    DoubleMatrix phi;
+    DoubleMatrix process;
     for (int m = 0; m < l.modes; ++m) {
-      const auto d = kalman_detail::discretise<MaxStates>(continuous(l, m), l.noise_index, ts);
-      if (m == 0) {
-        const double gas_step = q * d.q_unit(0, 0);  // variance of one gas increment
-        for (int j = 0; j < l.stages; ++j) {
-          const double sigma = double(l.stage_sensor[j] == 0 ? c.sigma1 : c.sigma2);
-          const double ratio = ts / l.tau_heat[j];
-          floor[l.stage_state[j]] = kalman_detail::kFloorRel * sigma * sigma +
-                                    kalman_detail::kFloorDyn * gas_step * ratio * ratio / 12.0;
-        }
-      }
-      DoubleMatrix process = q * d.q_unit;
-      process.diagonal() += floor;
-      if (!commit) {
-        const bool finite = d.phi.allFinite() && process.allFinite() &&
-                            d.phi.cwiseAbs().maxCoeff() <= limit &&
-                            process.cwiseAbs().maxCoeff() <= limit;
-        if (!finite) return false;
-      } else {
-        phi_[m] = d.phi.template cast<Scalar>();
-        process_[m] = process.template cast<Scalar>();
-      }
+      if (!discretise_mode(c, l, m, &phi, &process)) return false;
+    }
+    for (int m = 0; m < l.modes; ++m) {
+      discretise_mode(c, l, m, &phi, &process);
+      phi_[m] = phi.template cast<Scalar>();
+      process_[m] = process.template cast<Scalar>();
     }
     return true;
+  }
+
+  // Phi_m and q Qunit_m + Qfloor in double; false unless every entry is finite in Scalar.
+  static bool discretise_mode(const Config& c, const Layout& l, int mode, DoubleMatrix* phi,
+                              DoubleMatrix* process) noexcept {
+    const double ts = double(c.sample_interval);
+    const double q = double(c.intensity);
+    const auto d = kalman_detail::discretise<MaxStates>(continuous(l, mode), l.noise_index, ts);
+    // The floor: the variance of one gas increment (Qunit[0, 0], the same in every mode: the
+    // gas does not see the stages; rw Ts, irw Ts^3/3, here to rounding) and the heating
+    // time constants.
+    const double gas_step = q * (l.gas_states == 1 ? ts : ts * ts * ts / 3.0);
+    *phi = d.phi;
+    *process = q * d.q_unit;
+    for (int j = 0; j < l.stages; ++j) {
+      const double sigma = double(l.stage_sensor[j] == 0 ? c.sigma1 : c.sigma2);
+      const double ratio = ts / l.tau_heat[j];
+      (*process)(l.stage_state[j], l.stage_state[j]) +=
+          kalman_detail::kFloorRel * sigma * sigma +
+          kalman_detail::kFloorDyn * gas_step * ratio * ratio / 12.0;
+    }
+    const double limit = double(std::numeric_limits<Scalar>::max());
+    return phi->allFinite() && process->allFinite() && phi->cwiseAbs().maxCoeff() <= limit &&
+           process->cwiseAbs().maxCoeff() <= limit;
   }
 
   void set_parameters(const Config& c) noexcept {
@@ -415,6 +434,7 @@ class KalmanReconstructor {
     offset_ = Scalar(0);
     log_likelihood_ = Scalar(0);
     samples_ = 0;
+    started_ = false;
     first_ = 0;
     count_ = 0;
     jumped_ = false;
@@ -665,6 +685,7 @@ class KalmanReconstructor {
   int count_{0};
   bool detect_{false};
   bool configured_{false};
+  bool started_{false};
   bool jumped_{false};
   std::array<Candidate, MaxWindow> candidates_{};
 };
