@@ -14,7 +14,12 @@ from dualprobe.characterise import (
     write_json,
     write_reconstruction,
 )
-from dualprobe.cli.common import UsageError, handle_errors
+from dualprobe.cli.common import (
+    UsageError,
+    add_time_arguments,
+    check_writable,
+    handle_errors,
+)
 
 __all__ = ["register", "run"]
 
@@ -32,24 +37,6 @@ def _noise_std(text: str) -> tuple[float, ...]:
     return values
 
 
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
-
-
-def _check_writable(option: str, path: Path) -> None:
-    if path.is_dir():
-        raise UsageError(f"{option} {path}: is a directory")
-    parent = path.parent
-    if not parent.is_dir():
-        raise UsageError(f"{option} {path}: directory {parent} does not exist")
-
-
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "characterise",
@@ -60,20 +47,7 @@ def register(subparsers: Any) -> None:
         "temperature. The defaults need no knowledge of the noise level.",
     )
     parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
-    parser.add_argument(
-        "--time",
-        default="t",
-        metavar="COL",
-        help="time column in seconds (default: t); '' if the file has none, then give "
-        "--sample-interval",
-    )
-    parser.add_argument(
-        "--sample-interval",
-        type=_positive,
-        default=None,
-        metavar="TS",
-        help="sample interval in seconds when there is no time column",
-    )
+    add_time_arguments(parser)
     parser.add_argument("--sensor1", default="T_m1", metavar="COL", help="faster sensor (T_m1)")
     parser.add_argument("--sensor2", default="T_m2", metavar="COL", help="slower sensor (T_m2)")
     parser.add_argument(
@@ -126,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     # Refuse unwritable output paths before the (possibly long) computation.
     for option, target in (("--json", args.json), ("--output", args.output)):
         if target is not None:
-            _check_writable(option, Path(target))
+            check_writable(option, Path(target))
     need_reconstruction = args.output is not None or args.reference is not None
     result = characterise_file(
         args.data,

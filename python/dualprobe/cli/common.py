@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import argparse
 import functools
+import math
 import sys
 from collections.abc import Callable
-from typing import NoReturn
+from pathlib import Path
+from typing import Any, NoReturn
 
 from dualprobe.io import EstimationError, InputError
 
@@ -81,3 +83,40 @@ def handle_errors(run: Runner) -> Runner:
             return exit_status(exc)
 
     return wrapper
+
+
+def positive_float(text: str) -> float:
+    """argparse type: a finite number > 0."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
+    return value
+
+
+def check_writable(option: str, path: Path) -> None:
+    """Refuse an output file path before any work is done (exit 2)."""
+    if path.is_dir():
+        raise UsageError(f"{option} {path}: is a directory")
+    if not path.parent.is_dir():
+        raise UsageError(f"{option} {path}: directory {path.parent} does not exist")
+
+
+def add_time_arguments(parser: Any) -> None:
+    """The --time / --sample-interval pair every CSV command shares."""
+    parser.add_argument(
+        "--time",
+        default="t",
+        metavar="COL",
+        help="time column in seconds (default: t); '' if the file has none, then give "
+        "--sample-interval",
+    )
+    parser.add_argument(
+        "--sample-interval",
+        type=positive_float,
+        default=None,
+        metavar="TS",
+        help="sample interval in seconds when there is no time column",
+    )

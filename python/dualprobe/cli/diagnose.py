@@ -4,30 +4,17 @@ sensor model is missing, add them one by one and show the gap shrink."""
 from __future__ import annotations
 
 import argparse
-import math
 from pathlib import Path
 from typing import Any
 
-from dualprobe.cli.common import UsageError, handle_errors
+from dualprobe.cli.common import (
+    UsageError,
+    add_time_arguments,
+    check_writable,
+    handle_errors,
+)
 
 __all__ = ["register", "run"]
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
-
-
-def _check_file_target(option: str, path: Path) -> None:
-    if path.is_dir():
-        raise UsageError(f"{option} {path}: is a directory")
-    if not path.parent.is_dir():
-        raise UsageError(f"{option} {path}: directory {path.parent} does not exist")
 
 
 def _check_directory_target(option: str, path: Path) -> None:
@@ -60,20 +47,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument(
         "--output", required=True, metavar="COL", help="sensor under test, e.g. T_m"
     )
-    parser.add_argument(
-        "--time",
-        default="t",
-        metavar="COL",
-        help="time column in seconds (default: t); '' if the file has none, then give "
-        "--sample-interval",
-    )
-    parser.add_argument(
-        "--sample-interval",
-        type=_positive,
-        default=None,
-        metavar="TS",
-        help="sample interval in seconds when there is no time column",
-    )
+    add_time_arguments(parser)
     parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
     parser.add_argument(
         "--report",
@@ -97,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"diagnose: --input and --output are the same column {args.input!r}")
     # Refuse unusable output paths before the computation.
     if args.json is not None:
-        _check_file_target("--json", Path(args.json))
+        check_writable("--json", Path(args.json))
     if args.report is not None:
         _check_directory_target("--report", Path(args.report))
     result = diagnose_file(

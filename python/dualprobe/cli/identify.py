@@ -5,27 +5,16 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from dualprobe.cli.common import UsageError, handle_errors
+from dualprobe.cli.common import UsageError, add_time_arguments, handle_errors
 from dualprobe.identify import HOLDS, fit_transfer_function
 from dualprobe.io import InputError, load_columns
 
 __all__ = ["register", "run"]
-
-
-def _positive(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be finite and > 0, got {text!r}")
-    return value
 
 
 def register(subparsers: Any) -> None:
@@ -39,20 +28,7 @@ def register(subparsers: Any) -> None:
     parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
     parser.add_argument("--input", required=True, metavar="COL", help="input (reference) column")
     parser.add_argument("--output", required=True, metavar="COL", help="output (sensor) column")
-    parser.add_argument(
-        "--time",
-        default="t",
-        metavar="COL",
-        help="time column in seconds (default: t); '' if the file has none, then give "
-        "--sample-interval",
-    )
-    parser.add_argument(
-        "--sample-interval",
-        type=_positive,
-        default=None,
-        metavar="TS",
-        help="sample interval in seconds when there is no time column",
-    )
+    add_time_arguments(parser)
     parser.add_argument("--order", type=int, choices=(1, 2), default=1, help="model order")
     parser.add_argument("--delay", action="store_true", help="also estimate a dead time")
     parser.add_argument(
