@@ -133,6 +133,10 @@ struct WindowSum {
 
 }  // namespace svf_detail
 
+// Scalar: the per-sample arithmetic and the stored state (float on the ECU). Order: 1 or 2.
+// Static: unit or affine model. Hysteresis: heating/cooling split (order 1). MaxHalfWindow:
+// capacity of the look-ahead delay line (direction windows beyond it are invalid_argument; 128
+// covers tf/Ts up to 128, e.g. tf = 12.8 s at 10 Hz). SolveScalar: precision of solve().
 template <typename Scalar, int Order, StaticModel Static = StaticModel::unit,
           bool Hysteresis = false, int MaxHalfWindow = 128, typename SolveScalar = double>
 class SvfEstimator {
