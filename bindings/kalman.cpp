@@ -22,13 +22,13 @@ using namespace pybind11::literals;
 
 namespace {
 
+using dualprobe_bindings::Array;
+using dualprobe_bindings::checked_length;
+
 constexpr int kBindingMaxWindow = 256;  // the host has memory to spare; the ECU default is 64
 
 template <typename S>
 using Reconstructor = dualprobe::KalmanReconstructor<S, 6, 16, kBindingMaxWindow>;
-
-template <typename S>
-using Array = py::array_t<S, py::array::c_style | py::array::forcecast>;
 
 std::vector<double> as_taus(const char* name, const py::object& value, bool allow_none) {
   if (value.is_none()) {
@@ -139,13 +139,6 @@ Array<S> numeric(const py::array& a) {
     throw py::value_error("signals must be numeric arrays");
   }
   return out;
-}
-
-template <typename S>
-std::size_t checked_length(const Array<S>& a, const Array<S>& b) {
-  if (a.ndim() != 1 || b.ndim() != 1) throw py::value_error("signals must be one-dimensional");
-  if (a.shape(0) != b.shape(0)) throw py::value_error("the two signals differ in length");
-  return static_cast<std::size_t>(a.shape(0));
 }
 
 template <typename S>

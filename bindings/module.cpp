@@ -15,8 +15,8 @@ using namespace pybind11::literals;
 
 namespace {
 
-template <typename S>
-using Array = py::array_t<S, py::array::c_style | py::array::forcecast>;
+using dualprobe_bindings::Array;
+using dualprobe_bindings::checked_length;
 
 dualprobe::Method parse_method(const std::string& name) {
   if (name == "ls") return dualprobe::Method::ls;
@@ -47,13 +47,6 @@ py::dict result_dict(const dualprobe::DifferenceResult<S>& r) {
   return py::dict("status"_a = dualprobe::to_string(r.status), "beta"_a = double(r.beta),
                   "b1"_a = double(r.b1), "b2"_a = double(r.b2), "tau1"_a = double(r.tau1),
                   "tau2"_a = double(r.tau2), "eigenvalue_ratio"_a = double(r.eigenvalue_ratio));
-}
-
-template <typename S>
-std::size_t checked_length(const Array<S>& a, const Array<S>& b) {
-  if (a.ndim() != 1 || b.ndim() != 1) throw py::value_error("signals must be one-dimensional");
-  if (a.shape(0) != b.shape(0)) throw py::value_error("the two signals differ in length");
-  return static_cast<std::size_t>(a.shape(0));
 }
 
 // Feeds a batch; a non-finite sample is refused and breaks the chain of differences so no

@@ -21,12 +21,12 @@ using namespace pybind11::literals;
 
 namespace {
 
+using dualprobe_bindings::Array;
+using dualprobe_bindings::checked_length;
+
 // The host has memory to spare: the bindings accept look-ahead windows up to 1024 samples
 // (the Python layer may choose up to tf/Ts, e.g. ~550 at 100 Hz); the ECU default is 128.
 constexpr int kBindingMaxHalfWindow = 1024;
-
-template <typename S>
-using Array = py::array_t<S, py::array::c_style | py::array::forcecast>;
 
 template <typename S>
 using Variant = std::variant<
@@ -144,13 +144,6 @@ py::dict result_dict(const E& estimator, const typename E::Result& r) {
     out["time_constants_cool"] = py::none();
   }
   return out;
-}
-
-template <typename S>
-std::size_t checked_length(const Array<S>& a, const Array<S>& b) {
-  if (a.ndim() != 1 || b.ndim() != 1) throw py::value_error("signals must be one-dimensional");
-  if (a.shape(0) != b.shape(0)) throw py::value_error("the two signals differ in length");
-  return static_cast<std::size_t>(a.shape(0));
 }
 
 // Feeds a batch; non-finite samples are refused (skipped). Returns the number refused.
