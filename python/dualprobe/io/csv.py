@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
+from dualprobe.io.errors import InputError
+
 __all__ = [
-    "EstimationError",
-    "InputError",
     "load_columns",
     "read_csv_table",
     "write_columns",
@@ -28,14 +28,6 @@ __all__ = [
 # is called irregular: well above float64 rounding of typical time stamps (~1e-12 relative), far
 # below any real sampling glitch.
 IRREGULAR_TIME_TOLERANCE = 1e-6
-
-
-class InputError(ValueError):
-    """The input (file, column, value, argument) is unusable. CLI exit status 2."""
-
-
-class EstimationError(RuntimeError):
-    """The input is well formed but the estimation cannot be done. CLI exit status 3."""
 
 
 def _one_line(text: str, limit: int = 60) -> str:
