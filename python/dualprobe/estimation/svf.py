@@ -1,12 +1,13 @@
-"""High-level characterisation of a dual-sensor pair (design.md section 4).
+"""The noise-robust default of ``characterise_pair``: ``method="auto" | "svf"``.
 
-``characterise_pair`` is what ``dualprobe characterise`` calls. ``method="auto"`` (default)
-runs the state-variable-filter (SVF) cross-relation estimator of
-:mod:`dualprobe.reference.svf` (whose docstring has the maths and the measurements) with
+It runs the state-variable-filter (SVF) cross-relation estimator (design.md 1.4; the
+computations in :mod:`dualprobe.estimation.svf_backend`, the maths and measurements in the
+docstring of :mod:`dualprobe.reference.svf`) with
 
-* the noise level of each sensor estimated from its own signal (:func:`estimate_noise_std`)
-  unless given, and floored at 1e-6 of the signal's standard deviation and at the
-  first-order-hold error of the signal's kinks (:func:`discretisation_noise_std`; exact data);
+* the noise level of each sensor estimated from its own signal
+  (:func:`dualprobe.models.noise.estimate_noise_std`) unless given, and floored at 1e-6 of the
+  signal's standard deviation and at the first-order-hold error of the signal's kinks
+  (:func:`discretisation_noise_std`; exact data);
 * the filter time constant ``tf`` chosen from the data: a geometric scan of tf over the
   record's time scales (first-order fits), then the fixed point ``tf = kappa tau_fast(tf)``
   (kappa = 0.5 for order 1 and the hysteresis split, 0.25 for order 2);
@@ -29,35 +30,38 @@ runs the state-variable-filter (SVF) cross-relation estimator of
   order sensor even admits a near-null common factor that put a spurious 0.05 s pole on both
   sensors in the paper's noise-free study A (Ts = 0.1 s); with the selection, study A gives
   sensor 1 = 12.4797-12.4800 s alone and sensor 2's a_p to 4 % at 0.001 s, 0.1 % from 0.1 s.
-
-``method="ls" | "tls" | "gtls"`` runs the paper's difference-equation method (design.md 1.2)
-through the C++ core (or the NumPy reference if the core is not built).
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import scipy.ndimage
 
-from dualprobe.reference import svf
+from dualprobe.estimation.result import PairEstimate
+from dualprobe.estimation.svf_backend import (
+    SvfResult,
+    effective_samples,
+    estimate_or_none,
+    fast_time_constant,
+    sensor_order_fits,
+)
 
 __all__ = [
+    "DIRECTION_TOLERANCE",
     "GAP_THRESHOLD",
-    "METHODS",
-    "PairEstimate",
-    "characterise_pair",
-    "compare_methods",
+    "KAPPA",
+    "RESOLUTION_FLOOR",
+    "characterise_svf",
+    "choose_filter_time_constant",
     "discretisation_noise_std",
-    "estimate_noise_std",
 ]
 
-METHODS = ("auto", "svf", "ls", "tls", "gtls")
+
 # An eigenvalue counts as "noise only" when its excess over the noise band is below this many
 # standard deviations of the noise-only spread: exact common factors gave 0-2.5 (25 simulated
 # records, 10-100 Hz, 0.01-0.1 K); distinct poles 0.17 s / 0.19 s at 100 Hz, 0.01 K gave
@@ -66,69 +70,10 @@ GAP_THRESHOLD = 10.0
 KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
 RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std
 DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification
-_NOISE_DIFF_ORDER = 4  # fourth differences: the signal's share is ~(w Ts)^4, noise gain sqrt(70)
-_MIN_SAMPLES = 20
+
+
 _KINK_MEDIAN_WINDOW = 11  # running median of the second differences: kinks are 2 samples wide
 _KINK_THRESHOLD = 8.0  # kink spikes: beyond 8 noise standard deviations of a second difference
-
-
-class _InputError(ValueError):
-    """Fallback when dualprobe.io is unavailable."""
-
-
-def _input_error() -> type[ValueError]:
-    try:
-        from dualprobe.io import InputError
-    except ImportError:  # pragma: no cover - io is part of the package
-        return _InputError
-    return InputError
-
-
-@dataclass(frozen=True)
-class PairEstimate:
-    """Characterisation of a sensor pair; time constants in seconds, per sensor largest first.
-
-    ``status``: ok | insufficient_excitation | infeasible (| invalid_argument from the core).
-    ``details`` holds the numbers behind the estimate (filter time constant, eigenvalues,
-    ...) and ``message`` when the status is not ok.
-    """
-
-    status: str
-    method: str
-    order: int
-    sample_interval: float
-    time_constants: tuple[tuple[float, ...], tuple[float, ...]]
-    beta: float | None
-    noise_std: tuple[float, float]
-    time_constants_heat: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-    time_constants_cool: tuple[tuple[float, ...], tuple[float, ...]] | None = None
-    identifiability: dict[str, object] = field(default_factory=dict)
-    details: dict[str, object] = field(default_factory=dict)
-
-
-def estimate_noise_std(x: np.ndarray) -> float:
-    """Standard deviation of the white noise on a sampled sensor signal.
-
-    Robust scale (MAD) of the fourth differences divided by their noise gain sqrt(70). A
-    sensor signal is smooth on the sample grid, so its fourth differences ~ Ts^4 x'''' are
-    far below the noise; the few samples beside a kink (an off-grid gas step) are outliers the
-    median ignores. If more than half of the differences are zero (coarse ADC quantisation,
-    noise-free data) the RMS of the differences is used instead (quantisation noise
-    q/sqrt(12) when the signal moves; 0 for an exactly constant or polynomial signal).
-    """
-    arr = np.asarray(x, dtype=float)
-    k = _NOISE_DIFF_ORDER
-    if arr.ndim != 1 or arr.size < k + 2:
-        raise _input_error()(f"estimate_noise_std: need a 1-D array of >= {k + 2} samples")
-    if not np.all(np.isfinite(arr)):
-        bad = int(np.flatnonzero(~np.isfinite(arr))[0])
-        raise _input_error()(f"estimate_noise_std: sample {bad} is not finite")
-    d = np.diff(arr - arr[0], n=k)
-    gain = math.sqrt(math.comb(2 * k, k))
-    mad = float(np.median(np.abs(d - np.median(d))))
-    if mad > 0.0:
-        return 1.482602218505602 * mad / gain  # MAD -> Gaussian standard deviation
-    return float(np.sqrt(np.mean(d * d))) / gain
 
 
 def discretisation_noise_std(x: np.ndarray, noise_std: float = 0.0) -> float:
@@ -150,81 +95,6 @@ def discretisation_noise_std(x: np.ndarray, noise_std: float = 0.0) -> float:
     spikes = d - scipy.ndimage.median_filter(d, size=_KINK_MEDIAN_WINDOW, mode="nearest")
     spikes = spikes[np.abs(spikes) > _KINK_THRESHOLD * math.sqrt(6.0) * noise_std]
     return math.sqrt(float(np.sum(spikes * spikes)) / (144.0 * (d.size + 2)))
-
-
-# --------------------------------------------------------------------------------------------
-# Input checking
-# --------------------------------------------------------------------------------------------
-
-
-def _check_inputs(
-    t1: np.ndarray, t2: np.ndarray, ts: float, method: str, order: int, hysteresis: bool
-) -> tuple[np.ndarray, np.ndarray, float]:
-    error = _input_error()
-    a = np.asarray(t1, dtype=float)
-    b = np.asarray(t2, dtype=float)
-    if a.ndim != 1 or a.shape != b.shape:
-        raise error(f"characterise_pair: t1 and t2 must be 1-D of equal length, got {a.shape} "
-                    f"and {b.shape}")
-    for name, x in (("t1", a), ("t2", b)):
-        bad = np.flatnonzero(~np.isfinite(x))
-        if bad.size:
-            raise error(f"characterise_pair: {name}[{int(bad[0])}] is not finite")
-    try:
-        ts = float(ts)
-    except (TypeError, ValueError):
-        raise error(f"characterise_pair: sample interval must be a number, got {ts!r}") from None
-    if not (math.isfinite(ts) and ts > 0.0):
-        raise error(f"characterise_pair: sample interval must be finite and > 0, got {ts!r}")
-    if method not in METHODS:
-        raise error(f"characterise_pair: method must be one of {', '.join(METHODS)}, "
-                    f"got {method!r}")
-    if order not in (1, 2):
-        raise error(f"characterise_pair: order must be 1 or 2, got {order!r}")
-    if method in ("ls", "tls", "gtls") and (order != 1 or hysteresis):
-        raise error(f"characterise_pair: method {method!r} (difference equation) is first order "
-                    "without hysteresis; use method 'auto' for order 2 or hysteresis")
-    if hysteresis and order != 1:
-        raise error("characterise_pair: the hysteresis-aware estimate is first order; "
-                    "use order=1 with hysteresis=True")
-    return a, b, ts
-
-
-def _noise_levels(
-    t1: np.ndarray, t2: np.ndarray, noise_std: float | Sequence[float] | None
-) -> tuple[tuple[float, float], str]:
-    error = _input_error()
-    if noise_std is None:
-        return (estimate_noise_std(t1), estimate_noise_std(t2)), "estimated"
-    values = np.atleast_1d(np.asarray(noise_std, dtype=float)).ravel()
-    if values.size == 1:
-        values = np.repeat(values, 2)
-    if values.size != 2 or not np.all(np.isfinite(values)) or np.any(values < 0.0):
-        raise error(f"characterise_pair: noise_std must be one or two finite values >= 0, "
-                    f"got {noise_std!r}")
-    return (float(values[0]), float(values[1])), "given"
-
-
-# --------------------------------------------------------------------------------------------
-# SVF path
-# --------------------------------------------------------------------------------------------
-
-
-def _fast_time_constant(res: svf.SvfResult | None) -> float:
-    """Largest time constant of the faster sensor (NaN when the fit is unusable)."""
-    if res is None or res.status != "ok":
-        return float("nan")
-    fast = min(res.time_constants[0][0], res.time_constants[1][0])
-    return fast if math.isfinite(fast) and fast > 0.0 else float("nan")
-
-
-def _safe_estimate(
-    t1: np.ndarray, t2: np.ndarray, ts: float, **kwargs: Any
-) -> svf.SvfResult | None:
-    try:
-        return svf.estimate(t1, t2, ts, **kwargs)
-    except (np.linalg.LinAlgError, ValueError):
-        return None
 
 
 def choose_filter_time_constant(
@@ -249,9 +119,9 @@ def choose_filter_time_constant(
     grid = [2.0 * ts * 4.0**j for j in range(64) if 2.0 * ts * 4.0**j <= tf_max] or [tf_max]
 
     def fast_at(tf: float) -> float:
-        res = _safe_estimate(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1],
+        res = estimate_or_none(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1],
                              static=static, diagnostics=False)
-        return _fast_time_constant(res)
+        return fast_time_constant(res)
 
     best: tuple[float, float] | None = None  # (log mismatch, tf)
     for tf in grid:
@@ -275,16 +145,6 @@ def choose_filter_time_constant(
         if converged:
             break
     return tf, history
-
-
-def _effective_samples(res: svf.SvfResult, ts: float, sigma: tuple[float, float],
-                       static: str) -> float:
-    """Effective independent rows: the smaller of the noise model's and the residual's."""
-    disc = svf.discretise_filter(res.tf, ts, res.order + 1)
-    theta = svf.merged_theta(res.theta) if "heat" in res.extra else res.theta
-    model = svf.effective_samples(disc, theta, res.order, sigma[0], sigma[1], res.rows, static)
-    residual = float(res.extra["residual_effective_samples"])  # type: ignore[arg-type]
-    return min(model, residual) if math.isfinite(residual) else model
 
 
 def _gap_statistics(mu: np.ndarray, n_eff: float) -> np.ndarray:
@@ -325,57 +185,6 @@ def _beta(taus: tuple[tuple[float, ...], tuple[float, ...]], ts: float) -> float
     return b2 / b1
 
 
-@dataclass(frozen=True)
-class _SubModelFit:
-    """GTLS fit of the order-2 relation with some d_i fixed at zero."""
-
-    theta: np.ndarray  # full layout, zeros where d_i is dropped
-    eigenvalues: np.ndarray
-    polynomials: tuple[tuple[float, ...], tuple[float, ...]]
-    time_constants: tuple[tuple[float, ...], tuple[float, ...]]
-    feasible: bool
-
-    @property
-    def mu(self) -> float:
-        return float(self.eigenvalues[0])
-
-
-def _sensor_order_fits(
-    t1: np.ndarray, t2: np.ndarray, ts: float, tf: float, sigma: tuple[float, float],
-    static: str,
-) -> dict[tuple[int, int], _SubModelFit]:
-    """Order-2 SVF scatter (as :func:`dualprobe.reference.svf.estimate`) solved with the
-    sensors' orders (2, 2), (1, 2), (2, 1) and (1, 1): the d_i columns (1 and 3 of the
-    layout) are dropped from the scatter and the noise covariance."""
-    disc = svf.discretise_filter(tf, ts, 3)
-    cols = svf.regression_columns(t1, t2, disc, 2, None, static)
-    scatter = svf.projected_scatter(cols, disc, 0, static == "affine")
-    cov = svf.noise_covariance(disc, 2, sigma[0], sigma[1], static) * cols.shape[1]
-    size = scatter.shape[0]
-    out: dict[tuple[int, int], _SubModelFit] = {}
-    for orders in ((2, 2), (1, 2), (2, 1), (1, 1)):
-        keep = [i for i in range(size) if not (i == 1 and orders[0] == 1)
-                and not (i == 3 and orders[1] == 1)]
-        sub, mu, _ = svf.solve_gtls(scatter[np.ix_(keep, keep)], cov[np.ix_(keep, keep)])
-        theta = np.zeros(size)
-        theta[keep] = sub
-        gain = float(theta[4]) if static == "affine" else 1.0
-        polys = []
-        taus = []
-        for i in range(2):
-            c = float(theta[2 * i]) * tf / gain ** i
-            d = float(theta[2 * i + 1]) * tf**2 / gain ** i
-            if orders[i] == 1:
-                polys.append((c,))
-                taus.append((c,) if math.isfinite(c) and c > 0.0 else (float("nan"),))
-            else:
-                polys.append((c, d))
-                taus.append(svf.polynomial_time_constants((c, d)))
-        feasible = gain > 0.0 and all(math.isfinite(t) and t > 0.0 for ts_ in taus for t in ts_)
-        out[orders] = _SubModelFit(theta, mu, (polys[0], polys[1]), (taus[0], taus[1]), feasible)
-    return out
-
-
 @dataclass
 class _SvfRun:
     """One SVF characterisation: the data, the settings and the growing details."""
@@ -390,12 +199,12 @@ class _SvfRun:
     details: dict[str, object]
     tf: float = float("nan")
 
-    def fit(self, order: int, static: str, hysteresis: bool) -> svf.SvfResult | None:
+    def fit(self, order: int, static: str, hysteresis: bool) -> SvfResult | None:
         kwargs: dict[str, Any] = {"tf": self.tf, "order": order, "sigma1": self.sigma[0],
                                   "sigma2": self.sigma[1], "static": static}
         if hysteresis:
             kwargs.update(hysteresis=True, direction_tolerance=DIRECTION_TOLERANCE)
-        return _safe_estimate(self.t1, self.t2, self.ts, **kwargs)
+        return estimate_or_none(self.t1, self.t2, self.ts, **kwargs)
 
     def failed(self, status: str, message: str,
                identifiability: dict[str, object] | None = None) -> PairEstimate:
@@ -423,7 +232,7 @@ class _SvfRun:
                 "temperature changes"
             return self.failed("insufficient_excitation",
                                f"the signals do not excite the model (need {need})")
-        n_eff = _effective_samples(res, self.ts, self.sigma, static)
+        n_eff = effective_samples(res, self.ts, self.sigma, static)
         gaps = _gap_statistics(res.eigenvalues, n_eff)
         k = int(np.count_nonzero(gaps < GAP_THRESHOLD))
         mu = np.asarray(res.eigenvalues, dtype=float)
@@ -457,8 +266,8 @@ class _SvfRun:
             return self.reduced(res, static, k, identifiability)
         return self.finish(res, self.order, identifiability)
 
-    def select_sensor_orders(self, res: svf.SvfResult, static: str, n_eff: float,
-                             identifiability: dict[str, object]) -> svf.SvfResult | None:
+    def select_sensor_orders(self, res: SvfResult, static: str, n_eff: float,
+                             identifiability: dict[str, object]) -> SvfResult | None:
         """Drop a sensor's second-order coefficient d_i when the data do not need it.
 
         A sensor whose second time constant is ~0 (a first-order sensor, or one far below
@@ -479,8 +288,8 @@ class _SvfRun:
         """
         degenerate = int(identifiability["null_dimension"]) > 1  # type: ignore[call-overload]
         try:
-            fits = _sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
-        except (np.linalg.LinAlgError, ValueError):  # as _safe_estimate: no usable scatter
+            fits = sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
+        except (np.linalg.LinAlgError, ValueError):  # as estimate_or_none: no usable scatter
             return None if degenerate else res
         full = fits[(2, 2)]
         reference = max(full.mu, 1.0)
@@ -530,7 +339,7 @@ class _SvfRun:
             polynomials=fit.polynomials, eigenvalues=fit.eigenvalues,
         )
 
-    def select_static(self) -> tuple[svf.SvfResult | None, str]:
+    def select_static(self) -> tuple[SvfResult | None, str]:
         """Fit the unit-gain model and, for "auto", the affine one; keep the affine model only
         when it explains significantly more (gain or offset mismatch between the sensors)."""
         if self.static != "auto":
@@ -541,13 +350,13 @@ class _SvfRun:
             return unit, "unit"
         if unit is None:
             return affine, "affine"
-        n_eff = _effective_samples(unit, self.ts, self.sigma, "unit")
+        n_eff = effective_samples(unit, self.ts, self.sigma, "unit")
         gain = (float(unit.eigenvalues[0]) / max(float(affine.eigenvalues[0]), 1.0) - 1.0)
         statistic = gain * math.sqrt(n_eff / 2.0)
         self.details["static_model_statistic"] = statistic
         return (affine, "affine") if statistic > GAP_THRESHOLD else (unit, "unit")
 
-    def finish(self, res: svf.SvfResult, order: int,
+    def finish(self, res: SvfResult, order: int,
                identifiability: dict[str, object]) -> PairEstimate:
         if "heat" in res.extra:
             heat = res.extra["heat"]
@@ -582,7 +391,7 @@ class _SvfRun:
             identifiability=identifiability, details=self.details,
         )
 
-    def reduced(self, res: svf.SvfResult, static: str, k: int,
+    def reduced(self, res: SvfResult, static: str, k: int,
                 identifiability: dict[str, object]) -> PairEstimate:
         """k-dimensional near-null space: report what the data do determine."""
         if self.hysteresis:
@@ -624,7 +433,7 @@ class _SvfRun:
         return self.finish(low, reduced_order, identifiability)
 
 
-def _svf_estimate(
+def characterise_svf(
     t1: np.ndarray,
     t2: np.ndarray,
     ts: float,
@@ -635,6 +444,9 @@ def _svf_estimate(
     tf: float | None,
     static: str,
 ) -> PairEstimate:
+    """The SVF characterisation (module docstring) of checked signals with the noise levels
+    ``sigma`` (given or estimated: ``sigma_source``); ``tf`` None chooses the filter time
+    constant, ``static`` is auto | unit | affine."""
     details: dict[str, object] = {"noise_std_source": sigma_source}
     # Resolution floor: nothing below a part per million of a signal's variation is resolved
     # (rounding errors of exact data sit there), nor below the discretisation error at the
@@ -649,155 +461,3 @@ def _svf_estimate(
         details["noise_std_used"] = used
     result = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details).run(tf)
     return dataclasses.replace(result, noise_std=sigma)
-
-
-# --------------------------------------------------------------------------------------------
-# Difference-equation path (paper)
-# --------------------------------------------------------------------------------------------
-
-
-def _difference_estimate(
-    t1: np.ndarray, t2: np.ndarray, ts: float, method: str, sigma: tuple[float, float],
-    sigma_source: str,
-) -> PairEstimate:
-    solver = method
-    if method == "gtls" and not (sigma[0] > 0.0 and sigma[1] > 0.0):
-        solver = "tls"  # noise-free data: GTLS needs a noise model, TLS is its limit
-    try:
-        from dualprobe import _core
-
-        raw = _core.estimate_difference(t1, t2, ts, solver, sigma[0], sigma[1], 1.0)
-        result = {key: raw[key] for key in ("status", "beta", "tau1", "tau2")}
-        engine = "core"
-    except ImportError:
-        from dualprobe.reference import difference
-
-        ref = difference.estimate(t1, t2, ts, solver, sigma[0], sigma[1], 1.0)
-        result = {"status": ref.status, "beta": ref.beta, "tau1": ref.tau1, "tau2": ref.tau2}
-        engine = "reference"
-    status = str(result["status"])
-    details: dict[str, object] = {"noise_std_source": sigma_source, "engine": engine,
-                                  "solver": solver}
-    taus = ((float(result["tau1"]),), (float(result["tau2"]),))
-    if status != "ok":
-        details["message"] = {
-            "insufficient_excitation": "the differenced signals do not determine the time "
-            "constants",
-            "infeasible": "no feasible first-order pair fits (beta <= 0 or b outside (0, 1))",
-        }.get(status, status.replace("_", " "))
-    return PairEstimate(
-        status=status, method=method, order=1, sample_interval=ts, time_constants=taus,
-        beta=float(result["beta"]) if status == "ok" else None, noise_std=sigma,
-        identifiability={}, details=details,
-    )
-
-
-def characterise_pair(
-    t1: np.ndarray,
-    t2: np.ndarray,
-    ts: float,
-    *,
-    method: str = "auto",
-    order: int = 1,
-    hysteresis: bool = False,
-    noise_std: float | Sequence[float] | None = None,
-    filter_time_constant: float | None = None,
-    static_model: str = "auto",
-) -> PairEstimate:
-    """Identify the two sensors' time constants from their signals alone.
-
-    ``method``: auto | svf (state-variable filter, design.md 1.4; auto = svf with the filter
-    time constant chosen from the data) or ls | tls | gtls (the paper's difference method,
-    first order only). ``noise_std``: white-noise standard deviation, one value or one per
-    sensor; estimated from the signals when None. ``filter_time_constant``: the SVF's tf in
-    seconds (None: automatic). ``static_model`` (SVF): "unit" (both sensors of unit static
-    gain, design.md 1.4), "affine" (a gain ratio and an offset between the sensors are
-    estimated too; reported in ``details``) or "auto" (affine only when it fits significantly
-    better). Raises ValueError (dualprobe.io.InputError) for bad arguments;
-    estimation failures are reported in ``status`` with ``details["message"]``.
-    """
-    a, b, ts = _check_inputs(t1, t2, ts, method, order, hysteresis)
-    if filter_time_constant is not None and not (
-        math.isfinite(filter_time_constant) and filter_time_constant > 0.0
-    ):
-        raise _input_error()(f"characterise_pair: filter_time_constant must be finite and > 0, "
-                             f"got {filter_time_constant!r}")
-    sigma, source = _noise_levels(a, b, noise_std) if a.size >= _NOISE_DIFF_ORDER + 2 else (
-        (0.0, 0.0), "too few samples")
-    if a.size < _MIN_SAMPLES:
-        return PairEstimate(
-            status="insufficient_excitation", method=method, order=order, sample_interval=ts,
-            time_constants=((float("nan"),) * order,) * 2, beta=None, noise_std=sigma,
-            details={"message": f"{a.size} samples: at least {_MIN_SAMPLES} are needed"},
-        )
-    if method in ("ls", "tls", "gtls"):
-        return _difference_estimate(a, b, ts, method, sigma, source)
-    if static_model not in ("auto", *svf.STATIC_MODELS):
-        raise _input_error()(f"characterise_pair: static_model must be auto, unit or affine, "
-                             f"got {static_model!r}")
-    return _svf_estimate(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
-                         static_model)
-
-
-# --------------------------------------------------------------------------------------------
-# Plain difference method vs SVF (for `dualprobe bench` and the README)
-# --------------------------------------------------------------------------------------------
-
-
-def compare_methods(
-    *,
-    noise_levels: Sequence[float] = (0.01, 0.03, 0.1, 0.3),
-    sample_rates: Sequence[float] = (1.0, 10.0, 100.0),
-    time_constants: tuple[float, float] = (12.48, 28.95),
-    duration: float = 1200.0,
-    amplitude: float = 5.0,
-    seeds: int = 5,
-    methods: Sequence[str] = ("gtls", "auto"),
-    rng_seed: int = 0,
-) -> list[dict[str, float | int | str]]:
-    """Time-constant errors of the plain difference method and the SVF on the same data.
-
-    For every sample rate (Hz) and noise level (K, white, on both sensors) ``seeds`` records of
-    a unit-gain first-order pair seeing a multistep gas profile (holds ~ duration/12, steps
-    within +/- ``amplitude`` K, off the sample grid) are simulated and characterised with
-    default settings (noise level estimated from the data). One row per (rate, noise, method):
-    ``sample_rate, noise_std, method, runs, failures, tau1_median_abs_error,
-    tau2_median_abs_error, tau1_max_abs_error, tau2_max_abs_error`` (relative errors; failed
-    runs count as error 1.0 and in ``failures``).
-    """
-    from dualprobe import simulate as sim
-
-    sensors = (sim.SensorModel((time_constants[0],)), sim.SensorModel((time_constants[1],)))
-    truth = np.asarray(time_constants, dtype=float)
-    rows: list[dict[str, float | int | str]] = []
-    for rate in sample_rates:
-        ts = 1.0 / float(rate)
-        for noise in noise_levels:
-            errors: dict[str, list[np.ndarray]] = {m: [] for m in methods}
-            failures = dict.fromkeys(methods, 0)
-            for seed in range(seeds):
-                rng = np.random.default_rng([rng_seed, seed])
-                profile = sim.multistep_profile(
-                    duration, mean=20.0, amplitude=amplitude, mean_hold=duration / 12.0, rng=rng
-                )
-                rec = sim.simulate_pair(profile, *sensors, ts=ts, duration=duration,
-                                        noise_std=float(noise), rng=rng)
-                for method in methods:
-                    est = characterise_pair(rec.t1, rec.t2, ts, method=method)
-                    taus = np.array([est.time_constants[0][0], est.time_constants[1][0]])
-                    if est.status != "ok" or not np.all(np.isfinite(taus)):
-                        failures[method] += 1
-                        errors[method].append(np.ones(2))
-                    else:
-                        errors[method].append(np.abs(taus / truth - 1.0))
-            for method in methods:
-                e = np.array(errors[method])
-                rows.append({
-                    "sample_rate": float(rate), "noise_std": float(noise), "method": method,
-                    "runs": seeds, "failures": failures[method],
-                    "tau1_median_abs_error": float(np.median(e[:, 0])),
-                    "tau2_median_abs_error": float(np.median(e[:, 1])),
-                    "tau1_max_abs_error": float(np.max(e[:, 0])),
-                    "tau2_max_abs_error": float(np.max(e[:, 1])),
-                })
-    return rows
