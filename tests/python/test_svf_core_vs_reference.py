@@ -12,8 +12,9 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualprobe import estimation
 from dualprobe import simulate as sim
+from dualprobe.estimation import svf as estimation_svf
+from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 from dualprobe.reference import svf
 
 _core = pytest.importorskip("dualprobe._core")
@@ -74,15 +75,15 @@ def _hysteretic(seed: int) -> tuple[np.ndarray, np.ndarray, float, tuple[float, 
 def _settings(t1: np.ndarray, t2: np.ndarray, ts: float, order: int, static: str,
               hysteresis: bool = False) -> dict[str, Any]:
     """What the Python layer hands the core: noise levels, tf and (hysteresis) windows."""
-    sigma = (estimation.estimate_noise_std(t1), estimation.estimate_noise_std(t2))
-    tf, _ = estimation.choose_filter_time_constant(t1, t2, ts, order, sigma, static)
+    sigma = (estimate_noise_std(t1, ORDER_ESTIMATION), estimate_noise_std(t2, ORDER_ESTIMATION))
+    tf, _ = estimation_svf.choose_filter_time_constant(t1, t2, ts, order, sigma, static)
     out: dict[str, Any] = {"tf": tf, "order": order, "static": static, "sigma1": sigma[0],
                            "sigma2": sigma[1]}
     if hysteresis:
         disc = svf.discretise_filter(tf, ts, 2)
         out["hysteresis"] = True
         out["direction_half_window"] = tuple(
-            svf.choose_direction_half_window(x, disc, s, estimation.DIRECTION_TOLERANCE)
+            svf.choose_direction_half_window(x, disc, s, estimation_svf.DIRECTION_TOLERANCE)
             for x, s in ((t1, sigma[0]), (t2, sigma[1])))
     return out
 
@@ -104,7 +105,7 @@ def _reference(t1: np.ndarray, t2: np.ndarray, ts: float, s: dict[str, Any]) -> 
     result = svf.estimate(t1, t2, ts, tf=s["tf"], order=s["order"], sigma1=s["sigma1"],
                           sigma2=s["sigma2"], static=s["static"], hysteresis=hysteresis,
                           direction_half_window=None, diagnostics=False,
-                          direction_tolerance=estimation.DIRECTION_TOLERANCE)
+                          direction_tolerance=estimation_svf.DIRECTION_TOLERANCE)
     if hysteresis:  # the reference chose the same windows from the same rule
         assert tuple(result.extra["direction_half_windows"]) == s["direction_half_window"]
     return result
