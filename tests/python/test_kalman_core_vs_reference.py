@@ -12,7 +12,8 @@ import math
 import numpy as np
 import pytest
 
-from dualprobe import reconstruction, simulate
+from dualprobe import simulate
+from dualprobe.reconstruction import fit_smoother
 from dualprobe.reference import kalman
 
 core = pytest.importorskip("dualprobe._core")
@@ -234,7 +235,7 @@ def test_physics_steps_through_the_product_pipeline() -> None:
         rng=7,
     )
     taus = (simulate.PT100_1P5MM_FIRST.taus, simulate.PT100_4P5MM_FIRST.taus)
-    fit = reconstruction.fit_smoother(rec.t1, rec.t2, TS, taus[0], taus[1])
+    fit = fit_smoother(rec.t1, rec.t2, TS, taus[0], taus[1])
     q = fit.background_q
     out = core.kalman_filter(rec.t1, rec.t2, TS, taus[0], taus[1], fit.sigma, q, gas=fit.model.gas)
     out32 = core.kalman_filter(

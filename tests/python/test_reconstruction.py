@@ -16,8 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualprobe import reconstruction, simulate
-from dualprobe.reconstruction import estimate_noise_std, fit_smoother, reconstruct_pair
+from dualprobe import simulate
+from dualprobe.models import noise
+from dualprobe.models.inverse import zoh_inverse
+from dualprobe.reconstruction import fit_smoother, reconstruct_pair, resolvable_stages
+from dualprobe.reconstruction.statespace import process_floor
+from dualprobe.reconstruction.trajectory import Trajectory
 from dualprobe.reference import kalman
 
 PT100_FAST = (12.48,)
@@ -60,6 +64,11 @@ def _pair(
         noise_std=noise,
         rng=rng,
     )
+
+
+def estimate_noise_std(x: np.ndarray) -> float:
+    """The package's noise estimator with the difference order the reconstruction uses."""
+    return noise.estimate_noise_std(x, noise.ORDER_RECONSTRUCTION)
 
 
 def _ratio(estimate: np.ndarray, rec: simulate.PairRecording) -> float:
@@ -298,11 +307,11 @@ def test_banded_smoother_equals_rts_smoother() -> None:
     q = 5.0
     for gas in ("rw", "irw"):
         model = kalman.pair_model(PT100_FAST, PT100_SLOW, 0.1, gas=gas)
-        system = reconstruction._Trajectory(model, y, sigma)
+        system = Trajectory(model, y, sigma)
         lam = np.ones(y.shape[0] - 1)
         nll, banded, _ = system.evaluate(math.log(q), lam, np.zeros(lam.size, dtype=np.intp))
         phi = model.phi[0]
-        big_q = q * model.q_unit[0] + reconstruction._process_floor(model, sigma, q)
+        big_q = q * model.q_unit[0] + process_floor(model, sigma, q)
         h, r = model.h, np.diag(sigma**2)
         n = model.n
         # prior 1000 K wide around the first samples: its pull is ~(posterior/prior var) 1e-6
@@ -414,7 +423,7 @@ def _rmse_all(estimate: np.ndarray, truth: np.ndarray) -> float:
 
 def test_resolvable_stages_merge_what_the_samples_cannot_resolve() -> None:
     def stages(*args: object) -> list[list[float]]:
-        heat, cool = reconstruction.resolvable_stages(*args)  # type: ignore[arg-type]
+        heat, cool = resolvable_stages(*args)  # type: ignore[arg-type]
         return [list(heat), list(cool)]
 
     ts = 0.1
@@ -542,13 +551,10 @@ def test_zoh_inverse_of_one_sensor_is_exact_on_the_grid(taus: tuple[float, ...])
     )
     t = ts * np.arange(2001)
     measured = simulate.simulate_sensor(profile, simulate.SensorModel(taus), t)
-    held = reconstruction.zoh_inverse(measured, taus, ts)
+    held = zoh_inverse(measured, taus, ts)
     assert np.isnan(held[-1])
     # exact up to rounding amplified by the inverse (measured <= 1.5e-8 K)
     np.testing.assert_allclose(held[:-1], profile(t[:-1]), rtol=0.0, atol=1e-6)
-    beyond = pytest.importorskip("dualprobe.beyond")
-    if hasattr(beyond, "zoh_inverse"):  # one implementation: the same numbers while both exist
-        np.testing.assert_allclose(held, beyond.zoh_inverse(measured, taus, ts), atol=1e-7)
 
 
 def test_zoh_inverse_of_a_hysteretic_sensor_is_exact_on_the_grid() -> None:
@@ -562,8 +568,8 @@ def test_zoh_inverse_of_a_hysteretic_sensor_is_exact_on_the_grid() -> None:
         step_times=np.sort(rng.choice(np.arange(20, 1950), 8, replace=False)) * ts,
     )
     measured = simulate.simulate_hysteretic_sensor(profile, 12.0, 16.0, t)
-    held = reconstruction.zoh_inverse(measured, 12.0, ts, taus_cool=16.0)
-    plain = reconstruction.zoh_inverse(measured, 12.0, ts)
+    held = zoh_inverse(measured, 12.0, ts, taus_cool=16.0)
+    plain = zoh_inverse(measured, 12.0, ts)
     # rounding amplified by tau/Ts (measured ~1e-9); ignoring the cooling constant: kelvins
     np.testing.assert_allclose(held[:-1], profile(t[:-1]), rtol=0.0, atol=1e-6)
     assert np.nanmax(np.abs(plain - profile(t))) > 1.0
@@ -595,8 +601,8 @@ def test_zoh_inverse_of_a_hysteretic_two_stage_sensor() -> None:
             phi, gamma = steps[(bool(gas < z[0]), out_cooling)]
             z = phi @ z + gamma * gas
         measured.append(z[1])
-    inverse = reconstruction.zoh_inverse(np.array(measured), heat, ts, taus_cool=cool)
-    plain = reconstruction.zoh_inverse(np.array(measured), heat, ts)
+    inverse = zoh_inverse(np.array(measured), heat, ts, taus_cool=cool)
+    plain = zoh_inverse(np.array(measured), heat, ts)
     # the reference's own error x the inverse's gain (measured 1.7e-3 K; 9e-3 K with 40
     # sub-steps: it converges); ignoring the cooling time constants: kelvins
     assert np.max(np.abs(inverse[:-1] - held[:-1])) < 0.01

@@ -1,0 +1,89 @@
+"""``reconstruct_pair``: the gas temperature from a sensor pair, by the smoother (offline), the
+causal filter (as on the ECU) or the exact inverse."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from dualprobe.models.inverse import zoh_inverse_pair
+from dualprobe.reconstruction.checks import (
+    as_sigma,
+    as_static,
+    as_taus,
+    check_signals,
+    effective_sigma,
+)
+from dualprobe.reconstruction.smoother import fit_smoother
+from dualprobe.reconstruction.statespace import kalman_filter
+
+__all__ = ["MODES", "reconstruct_pair"]
+
+MODES = ("smoother", "filter", "inverse")
+
+
+def reconstruct_pair(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    taus1: float | Sequence[float],
+    taus2: float | Sequence[float],
+    *,
+    mode: str = "smoother",
+    noise_std: float | Sequence[float] | None = None,
+    taus1_cool: float | Sequence[float] | None = None,
+    taus2_cool: float | Sequence[float] | None = None,
+    relative_static: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """Gas temperature at the sample instants (NaN where it cannot be formed).
+
+    ``taus1``/``taus2``: each sensor's time constants (1 or 2; heating ones when hysteretic),
+    ``taus*_cool``: cooling time constants (same count) for hysteretic sensors. ``noise_std``:
+    one value, one per sensor, or None to estimate it. ``mode``: smoother (offline, default),
+    filter (causal, as on the ECU), inverse (the exact inverse of each sampled sensor,
+    weighted). ``relative_static``: ``(gain_ratio, offset)`` of sensor 2 relative to sensor 1
+    as ``characterise_pair`` reports them (``details``, affine static model
+    ``P1 T1 = g P2 T2 + o``): sensor 2's samples are first mapped to sensor 1's calibration,
+    ``g T2 + o``, and the result is the gas temperature as sensor 1 reads it (its gain times
+    Tg plus its offset; two sensors alone cannot tell their common calibration). Without it
+    both sensors are taken as unit-gain, zero-offset (design.md).
+    """
+    if mode not in MODES:
+        raise ValueError(f"reconstruct_pair: mode must be one of {', '.join(MODES)}, got {mode!r}")
+    y = check_signals(t1, t2, ts)
+    sigma = as_sigma(noise_std)
+    if relative_static is not None:
+        gain, offset = as_static(relative_static)
+        y[:, 1] = gain * y[:, 1] + offset
+        if sigma is not None:
+            sigma = (sigma[0], gain * sigma[1])
+    taus = (as_taus("taus1", taus1), as_taus("taus2", taus2))
+    if taus[0] is None or taus[1] is None:
+        raise ValueError("reconstruct_pair: taus1 and taus2 are required")
+    cool = (as_taus("taus1_cool", taus1_cool), as_taus("taus2_cool", taus2_cool))
+    for i in range(2):
+        c = cool[i]
+        if c is not None and len(c) != len(taus[i]):
+            raise ValueError(
+                f"reconstruct_pair: taus{i + 1}_cool needs {len(taus[i])} time constants"
+            )
+    cool_full = (cool[0] or taus[0], cool[1] or taus[1])
+    if mode == "inverse":
+        return zoh_inverse_pair(
+            y[:, 0], y[:, 1], float(ts), taus[0], taus[1], taus1_cool=cool_full[0],
+            taus2_cool=cool_full[1], noise_std=effective_sigma(y, sigma), aligned=True)
+    fit = fit_smoother(
+        y[:, 0],
+        y[:, 1],
+        float(ts),
+        taus[0],
+        taus[1],
+        noise_std=sigma,
+        taus1_cool=cool[0],
+        taus2_cool=cool[1],
+    )
+    if mode == "smoother":
+        return fit.gas
+    result = kalman_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma)
+    return result.gas + fit.offset

@@ -1,0 +1,202 @@
+"""The offline heavy-tailed MAP smoother (:func:`fit_smoother`): rw or irw gas by marginal
+likelihood, the noise raised where the model needs runs of jumps, and gas steps that sit on a
+sample instant (see the :mod:`dualprobe.reconstruction` docstring)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from dualprobe.reconstruction.checks import as_sigma, as_taus, check_signals, effective_sigma
+from dualprobe.reconstruction.stages import resolvable_stages, unresolved_lag
+from dualprobe.reconstruction.statespace import (
+    GAS_MODELS,
+    PairModel,
+    continuous_matrix,
+    pair_model,
+)
+from dualprobe.reconstruction.trajectory import fit_gas_models
+
+__all__ = ["SmootherFit", "fit_smoother"]
+
+_JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds a jump
+_STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
+_MAX_JUMP_REGION = 4  # longer runs of jump intervals are not one step on an instant
+_MAX_NOISE_RAISES = 6  # refits with the noise level raised (see fit_smoother)
+_NOISE_RAISE = 10.0  # factor per refit
+_SNAP = 4  # grid points (10 % of Ts): a step this close to an instant sits on it
+_GRID_CHI2 = 6.635  # chi2(1 dof) 99 % quantile: the step-at-a-sample tests
+
+
+@dataclass(frozen=True, eq=False)
+class SmootherFit:
+    """Outcome of :func:`fit_smoother`: the chosen model, gas intensity ``q`` (scale of the
+    Student-t increments), per-interval weights lambda (N-1,), hysteresis modes (N-1,), the
+    MAP state trajectory (N, n; offset removed: add ``offset``), the marginal nll, the noise
+    levels used, and the candidates' nll by gas model."""
+
+    model: PairModel
+    q: float
+    weights: np.ndarray
+    modes: np.ndarray
+    states: np.ndarray
+    offset: float
+    nll: float
+    sigma: tuple[float, float]
+    nll_by_gas: dict[str, float]
+    iterations: int
+    steps_at_samples: np.ndarray
+
+    @property
+    def gas(self) -> np.ndarray:
+        """MAP gas temperature at the sample instants, right-continuous where a gas step sits
+        on an instant (``steps_at_samples`` rows (k0, k1, m): the level of sample k0 before
+        the instant k0 + m, that of sample k1 from it on)."""
+        gas = self.states[:, 0] + self.offset
+        for k0, k1, m in self.steps_at_samples:
+            gas[k0 + 1 : k0 + m] = gas[k0]
+            gas[k0 + m : k1] = gas[k1]
+        return gas
+
+    @property
+    def background_q(self) -> float:
+        """Intensity of the ordinary (non-jump) gas motion: q / median weight."""
+        return self.q / float(np.median(self.weights))
+
+
+def _steps_at_samples(
+    model: PairModel,
+    y: np.ndarray,
+    x: np.ndarray,
+    lam: np.ndarray,
+    modes: np.ndarray,
+    sigma: np.ndarray,
+) -> np.ndarray:
+    """Gas steps that sit exactly on a sample instant: rows (first sample, last sample, m) of
+    the jump regions whose step is at the instant first + m (see the module docstring,
+    "Steps on a sample instant").
+
+    A jump region is a run of intervals k0..k1 the smoother weights below ``_JUMP_WEIGHT``
+    of the median. One step J = g(k1+1) - g(k0) at t(k0) + s Ts, s in [0, L] (L = k1-k0+1),
+    from the state x(k0) predicts the outputs at t(k0+1..k0+L) as the free response plus
+    ``J H expm(F (j - s) Ts) e_0`` (j > s). Misfit ``r(s) = sum (residual / sigma)^2 / 2``
+    (the halving: the sample's and the smoothed state's errors) over a grid of s. Accepted
+    at the instant m nearest the best s when m is as good (``2 (r(m) - min r) <=
+    chi2_1(0.99)``) or within ``_SNAP`` grid points of it (a slightly wrong time constant
+    shifts the best s by a few % of Ts), and every other instant is clearly worse
+    (``2 (r - r(m)) > chi2_1(0.99)``: no step, or a step nowhere in particular)."""
+    found: list[tuple[int, int, int]] = []
+    jump = lam < _JUMP_WEIGHT * float(np.median(lam)) if lam.size else np.zeros(0, bool)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], jump.astype(np.int8), [0]))))
+    regions = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    regions = [(a, b) for a, b in regions if b - a <= _MAX_JUMP_REGION]
+    if not regions:
+        return np.zeros((0, 3), dtype=np.intp)
+    per = _STEP_FRACTIONS - 1  # grid points per sample interval
+    longest = max(b - a for a, b in regions)
+    f_ts = continuous_matrix(model) * model.ts
+    # output response to a unit step i/per intervals ago, i = 0 .. longest * per
+    response = np.array(
+        [model.h @ scipy.linalg.expm(f_ts * (i / per))[:, 0] for i in range(longest * per + 1)]
+    )
+    for k0, end in regions:
+        length = end - k0
+        step = x[end, 0] - x[k0, 0]
+        free = x[k0].copy()
+        r = np.zeros(length * per + 1)  # s = i / per, i = 0 .. length * per
+        positions = np.arange(r.size)
+        for j in range(1, length + 1):
+            free = model.phi[modes[k0 + j - 1]] @ free
+            resid = y[k0 + j] - model.h @ free
+            ago = j * per - positions  # (j - s) in grid units, > 0 when the step came first
+            effect = np.where((ago > 0)[:, None], step * response[np.maximum(ago, 0)], 0.0)
+            r += 0.5 * np.sum(((resid - effect) / sigma) ** 2, axis=1)
+        on_instant = r[::per]
+        best = int(np.argmin(r))
+        m = round(best / per)
+        others = np.delete(on_instant, m)
+        near = 2.0 * (on_instant[m] - r[best]) <= _GRID_CHI2 or abs(best - m * per) <= _SNAP
+        if near and (others.size == 0 or 2.0 * (np.min(others) - on_instant[m]) > _GRID_CHI2):
+            found.append((k0, end, m))
+    return np.array(found, dtype=np.intp).reshape(-1, 3)
+
+
+def _longest_jump_run(lam: np.ndarray) -> int:
+    """Most consecutive intervals weighted as jumps (below ``_JUMP_WEIGHT`` of the median)."""
+    if lam.size == 0:
+        return 0
+    jump = np.concatenate(([0], (lam < _JUMP_WEIGHT * float(np.median(lam))).astype(np.int8), [0]))
+    edges = np.flatnonzero(np.diff(jump))
+    return int(np.max(edges[1::2] - edges[::2])) if edges.size else 0
+
+
+def fit_smoother(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    taus1: float | Sequence[float],
+    taus2: float | Sequence[float],
+    *,
+    noise_std: float | Sequence[float] | None = None,
+    taus1_cool: float | Sequence[float] | None = None,
+    taus2_cool: float | Sequence[float] | None = None,
+    gas: str = "auto",
+) -> SmootherFit:
+    """Fit the heavy-tailed smoother (module docstring) and return everything it found.
+
+    ``gas``: ``"auto"`` (rw or irw by marginal likelihood), ``"rw"`` or ``"irw"``.
+    """
+    y = check_signals(t1, t2, ts)
+    taus = (as_taus("taus1", taus1), as_taus("taus2", taus2))
+    if taus[0] is None or taus[1] is None:
+        raise ValueError("reconstruct_pair: taus1 and taus2 are required")
+    cool = (as_taus("taus1_cool", taus1_cool), as_taus("taus2_cool", taus2_cool))
+    if gas != "auto" and gas not in GAS_MODELS:
+        raise ValueError(f"fit_smoother: gas must be auto, rw or irw, got {gas!r}")
+    sigma = effective_sigma(y, as_sigma(noise_std))
+    offset = float(np.mean(y))
+    yc = y - offset  # states relative to the record's mean: better conditioned sums
+    stages = [resolvable_stages(taus[i], float(ts), cool[i]) for i in range(2)]
+    for i in range(2):
+        # a merged or raised stage errs by ~ its lag times the output's rate: noise to the model
+        rate = float(np.sqrt(np.mean(np.diff(y[:, i]) ** 2))) / float(ts)
+        sigma[i] = math.hypot(sigma[i], unresolved_lag(taus[i], cool[i], float(ts)) * rate)
+
+    def model_for(name: str) -> PairModel:
+        return pair_model(
+            stages[0][0],
+            stages[1][0],
+            float(ts),
+            gas=name,
+            taus1_cool=stages[0][1],
+            taus2_cool=stages[1][1],
+        )
+
+    for _ in range(_MAX_NOISE_RAISES + 1):
+        fits = fit_gas_models(model_for, yc, sigma, gas)
+        chosen = min(fits, key=lambda f: f.best[0])
+        nll, log_q, lam, modes, x = chosen.best
+        if not math.isfinite(nll):
+            raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
+        if _longest_jump_run(lam) <= _MAX_JUMP_REGION:
+            break
+        # the model needs runs of jumps: it disagrees with the samples by more than the
+        # noise (e.g. time constants a little off on noise-free data); that is noise to it
+        sigma = sigma * _NOISE_RAISE
+    return SmootherFit(
+        model=chosen.model,
+        q=math.exp(log_q),
+        weights=lam,
+        modes=modes,
+        states=x,
+        offset=offset,
+        nll=nll,
+        sigma=(float(sigma[0]), float(sigma[1])),
+        nll_by_gas={f.model.gas: f.best[0] for f in fits},
+        iterations=chosen.rounds,
+        steps_at_samples=_steps_at_samples(chosen.model, yc, x, lam, modes, sigma),
+    )

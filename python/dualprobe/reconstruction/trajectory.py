@@ -1,0 +1,329 @@
+"""The MAP gas trajectory for one gas model: banded normal equations of the whole trajectory, the
+exact Gaussian marginal likelihood in the gas intensity q, and the alternation of Student-t
+weights and q (:class:`GasFit`) that :func:`dualprobe.reconstruction.smoother.fit_smoother`
+runs for each gas model."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+import scipy.linalg
+import scipy.linalg.lapack
+import scipy.optimize
+
+from dualprobe.reconstruction.statespace import PairModel, process_floor
+
+__all__ = ["JUMP_DOF", "GasFit", "Trajectory", "fit_gas_models"]
+
+JUMP_DOF = 1.0  # Student-t increments: a jump costs ~log(size), not size^2 (not data-tuned)
+_MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
+_NEWTON_H = 0.2  # log q step of the parabola (the nll is smooth in log q on this scale)
+_NEWTON_MAX = 3.0  # largest log q move per round
+_MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
+_LOGQ_TOL = 0.1  # 10 % in q: the reconstruction changes by a fraction of that
+_START_TOL = 0.5  # log q tolerance of the Gaussian start
+_NLL_TOL = 1.0  # settled: the best nll gained less than this over two rounds
+_UNUSABLE = 1e100  # nll reported to the optimiser where the normal equations are singular
+_WANDER_MIN = 1e-3  # smallest q: the gas wanders by 1e-3 sigma over the whole record
+_STEP_MAX = 1e3  # largest q: one step of the gas moves it by 1e3 times the signals' span
+
+
+class Trajectory:
+    """Normal equations of the whole state trajectory for one model and data set.
+
+    Unknowns x_0..x_(N-1) (interleaved, n per sample). Objective (negative log joint density):
+    ``1/2 sum r_k^T R^-1 r_k + 1/2 sum lambda_k w_k^T Qb_(m_k)^-1 w_k`` with
+    ``r_k = y_k - H x_k``, ``w_k = x_(k+1) - Phi_(m_k) x_k``, ``Qb_m = q Qunit_m + Qfloor``;
+    the Hessian is block-tridiagonal with bandwidth 2n - 1.
+    """
+
+    def __init__(self, model: PairModel, y: np.ndarray, sigma: np.ndarray) -> None:
+        self.model = model
+        self.y = y
+        self.n = model.n
+        self.samples = y.shape[0]
+        self.r_inv = np.diag(1.0 / sigma**2)
+        self.log_det_2pi_r = float(np.sum(np.log(2.0 * np.pi * sigma**2)))
+        self.sigma = sigma
+        self.hrh = model.h.T @ self.r_inv @ model.h
+        self.outputs = np.argmax(model.h, axis=1)  # the state each sensor measures
+        self.rhs = (y @ (self.r_inv @ model.h)).ravel()
+        self.upper = 2 * self.n - 1
+
+    def evaluate(
+        self, log_q: float, lam: np.ndarray, modes: np.ndarray
+    ) -> tuple[float, np.ndarray, np.ndarray]:
+        """Gaussian negative log marginal likelihood of y for increments ``N(0, Qb/lambda_k)``
+        (exact: ``J(x) + 1/2 log det A - N n/2 log 2 pi``), the MAP trajectory (N, n) and
+        the unweighted squared Mahalanobis sizes m_k^2 (N-1,) of its increments. ``inf``
+        when the normal equations are not numerically positive definite."""
+        model, n, big_n = self.model, self.n, self.samples
+        q = math.exp(log_q)
+        qb = q * model.q_unit + process_floor(model, self.sigma, q)
+        w_inv = np.linalg.inv(qb)
+        log_det_qb = np.linalg.slogdet(2.0 * np.pi * qb)[1]
+        phi = model.phi
+        pwp = np.einsum("mji,mjk,mkl->mil", phi, w_inv, phi)
+        pw = np.einsum("mji,mjk->mik", phi, w_inv)
+        single = phi.shape[0] == 1
+        if single:
+            pwp_k, w_inv_k, pw_k = pwp[0], w_inv[0], pw[0]
+        else:
+            pwp_k, w_inv_k, pw_k = pwp[modes].T, w_inv[modes].T, pw[modes].T  # (n, n, N-1)
+        lam_next = np.zeros(big_n)  # weight of the interval after each sample
+        lam_next[:-1] = lam
+        lam_prev = np.zeros(big_n)  # ... and before it
+        lam_prev[1:] = lam
+        u = self.upper
+        ab = np.zeros((u + 1, big_n * n))
+        for p in range(n):
+            for c in range(p, n):
+                if single:
+                    row = self.hrh[p, c] + lam_next * pwp_k[p, c] + lam_prev * w_inv_k[p, c]
+                else:
+                    row = np.full(big_n, self.hrh[p, c])
+                    row[:-1] += lam * pwp_k[c, p]
+                    row[1:] += lam * w_inv_k[c, p]
+                ab[u + p - c, c::n] = row
+            for c in range(n):
+                ab[n - 1 + p - c, n + c :: n] = -lam * (pw_k[p, c] if single else pw_k[c, p])
+        chol, info = scipy.linalg.lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+        if info != 0:
+            return math.inf, np.empty((0, n)), np.empty(0)
+        x, info = scipy.linalg.lapack.dpbtrs(chol, self.rhs, lower=0)
+        if info != 0:
+            return math.inf, np.empty((0, n)), np.empty(0)
+        x = x.reshape(big_n, n)
+        # einsum, not matmul: BLAS threads on these tall, thin products cost more than they
+        # save (3x the whole fit on a busy 2-core machine)
+        resid = self.y - x[:, self.outputs]
+        if phi.shape[0] == 1:
+            w = x[1:] - np.einsum("ij,kj->ki", phi[0], x[:-1])
+            m2 = np.einsum("ki,ij,kj->k", w, w_inv[0], w)
+            log_det_q = (big_n - 1) * log_det_qb[0]
+        else:
+            w = x[1:] - np.einsum("kij,kj->ki", phi[modes], x[:-1])
+            m2 = np.einsum("ki,kij,kj->k", w, w_inv[modes], w)
+            log_det_q = float(np.sum(log_det_qb[modes]))
+        prior = float(np.dot(lam, m2)) + log_det_q - n * float(np.sum(np.log(lam)))
+        nll = 0.5 * (
+            float(np.sum(resid * resid / self.sigma**2))
+            + big_n * self.log_det_2pi_r
+            + prior
+            + 2.0 * float(np.sum(np.log(chol[-1])))
+            - big_n * n * math.log(2.0 * math.pi)
+        )
+        if not math.isfinite(nll):
+            return math.inf, np.empty((0, n)), np.empty(0)
+        return float(nll), x, m2
+
+
+def _interval_modes(model: PairModel, x: np.ndarray) -> np.ndarray:
+    """Hysteresis mode of each interval from the trajectory: sign of (input - state) at the
+    interval's midpoint (mean of its end states)."""
+    return model.modes(0.5 * (x[1:] + x[:-1]))
+
+
+def _initial_modes(model: PairModel, y: np.ndarray) -> np.ndarray:
+    """Before any trajectory exists: a stage is heating while its sensor's output rises."""
+    if not model.hysteretic:
+        return np.zeros(y.shape[0] - 1, dtype=np.intp)
+    cooling = np.diff(y, axis=0)[:, model.stage_sensor] < 0.0
+    return np.sum(cooling * (1 << np.arange(model.stage_state.size)), axis=1).astype(np.intp)
+
+
+class _Objective:
+    """Marginal nll as a function of log q, memoised (trajectory and Mahalanobis sizes of
+    every evaluated point are kept).
+
+    Weights co-move with q: from the increments' sizes ``m2_ref`` measured at ``log_q_ref``,
+    an increment keeps its size while q changes, so its squared Mahalanobis size scales as
+    ``m2_ref q_ref / q`` and its weight is ``(nu + n)/(nu + m2_ref q_ref / q)``. (With fixed
+    weights, q could only creep down as the steps' weights caught up, ~40 rounds.) Without a
+    reference the weights are the initial ones (all 1: the Gaussian model; or those found
+    with another gas model, see :func:`fit_smoother`).
+    """
+
+    def __init__(
+        self, system: Trajectory, modes: np.ndarray, initial_weights: np.ndarray | None = None
+    ) -> None:
+        self.system = system
+        self.modes = modes
+        self.initial = np.ones(system.samples - 1) if initial_weights is None else initial_weights
+        self.m2_ref: np.ndarray | None = None
+        self.log_q_ref = 0.0
+        self.cache: dict[float, tuple[float, np.ndarray, np.ndarray]] = {}
+
+    def set(self, m2_ref: np.ndarray | None, log_q_ref: float, modes: np.ndarray) -> None:
+        self.m2_ref, self.log_q_ref, self.modes = m2_ref, log_q_ref, modes
+        self.cache.clear()
+
+    def weights(self, log_q: float) -> np.ndarray:
+        if self.m2_ref is None:
+            return self.initial
+        m2 = self.m2_ref * math.exp(self.log_q_ref - log_q)
+        return (JUMP_DOF + self.system.n) / (JUMP_DOF + m2)
+
+    def __call__(self, log_q: float) -> float:
+        nll = self.result(log_q)[0]
+        return nll if math.isfinite(nll) else _UNUSABLE  # optimisers need finite numbers
+
+    def result(self, log_q: float) -> tuple[float, np.ndarray, np.ndarray]:
+        if log_q not in self.cache:
+            self.cache[log_q] = self.system.evaluate(log_q, self.weights(log_q), self.modes)
+        return self.cache[log_q]
+
+
+def _minimise_log_q(
+    fun: _Objective, start: float, step: float, bounds: tuple[float, float], tol: float
+) -> float:
+    """Bracket the minimum of nll(log q) within ``bounds`` by walking from ``start`` in
+    doubling steps, then refine with bounded Brent to ``tol``."""
+    low, high = bounds
+    start = min(max(start, low), high)
+    f0 = fun(start)
+    left, right = max(start - step, low), min(start + step, high)
+    f_left, f_right = fun(left), fun(right)
+    if f_left < f0 and f_left <= f_right:
+        mid, f_mid, hi = left, f_left, start
+        lo = left
+        while lo > low:
+            step *= 2.0
+            lo = max(mid - step, low)
+            f_lo = fun(lo)
+            if f_lo >= f_mid:
+                break
+            hi, mid, f_mid = mid, lo, f_lo
+    elif f_right < f0:
+        mid, f_mid, lo = right, f_right, start
+        hi = right
+        while hi < high:
+            step *= 2.0
+            hi = min(mid + step, high)
+            f_hi = fun(hi)
+            if f_hi >= f_mid:
+                break
+            lo, mid, f_mid = mid, hi, f_hi
+    else:
+        lo, mid, hi = left, start, right
+    if hi - lo <= tol:
+        return mid
+    result = scipy.optimize.minimize_scalar(
+        fun, bounds=(lo, hi), method="bounded", options={"xatol": tol}
+    )
+    best = float(result.x)
+    return best if fun(best) <= fun(mid) else mid
+
+
+def _log_q_range(model: PairModel, y: np.ndarray, sigma: np.ndarray) -> tuple[float, ...]:
+    """(lowest, start, highest) log q searched (rw: K^2/s, irw: K^2/s^3). Below the lowest
+    the gas is constant for all the data can tell, above the highest it jumps by 1000x the
+    signals' span every sample; the start lets it wander over the record by the signals'
+    spread."""
+    duration = model.ts * (y.shape[0] - 1)
+    power = 1 if model.gas == "rw" else 3
+    span = float(np.ptp(y)) + float(np.max(sigma))
+    lowest = math.log((_WANDER_MIN * float(np.min(sigma))) ** 2 / duration**power)
+    highest = math.log((_STEP_MAX * span) ** 2 / model.ts**power)
+    spread2 = float(np.var(y[:, 0])) + float(np.sum(sigma**2))
+    return lowest, math.log(spread2 / duration**power), highest
+
+
+class GasFit:
+    """The IRLS / marginal-likelihood alternation for one gas model, resumable.
+
+    Start: the Gaussian model's maximum-likelihood q (all weights 1). Each round: weights
+    from the increments of the current trajectory (co-moving with q, see :class:`_Objective`),
+    then one safeguarded Newton step on log q from a parabola through log q and log q +- h.
+    The round with the lowest nll is kept (the alternation is not a strict descent).
+    """
+
+    def __init__(
+        self,
+        model: PairModel,
+        y: np.ndarray,
+        sigma: np.ndarray,
+        initial_weights: np.ndarray | None = None,
+    ) -> None:
+        self.model = model
+        self.objective = _Objective(
+            Trajectory(model, y, sigma), _initial_modes(model, y), initial_weights
+        )
+        self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
+        lowest, start, highest = _log_q_range(model, y, sigma)
+        self.bounds = (lowest, highest)
+        # the rounds refine q: the start needs it to a factor of ~1.6 only
+        self.log_q = _minimise_log_q(self.objective, start, 4.0, self.bounds, _START_TOL)
+        self.nll, self.x, self.m2 = self.objective.result(self.log_q)
+        self.lam = self.objective.weights(self.log_q)
+        self.best = (self.nll, self.log_q, self.lam, self.objective.modes, self.x)
+        self.rounds = 0
+        self.mode_passes = 0
+        self.converged = not math.isfinite(self.nll)
+
+    def iterate(self, rounds: int, rival: float | None = None) -> None:
+        """Up to ``rounds`` more rounds; with ``rival`` (another model's best nll) stop as
+        soon as this model cannot reach it at its recent rate of improvement."""
+        objective, model = self.objective, self.model
+        gains = [math.inf, math.inf]
+        for left in range(rounds - 1, -1, -1):
+            if self.converged:
+                return
+            before, centre = self.best[0], self.log_q
+            self._round(objective, model)
+            gains = [gains[1], before - self.best[0]]
+            if max(gains) < _NLL_TOL and abs(self.log_q - centre) < _LOGQ_TOL:
+                self.converged = True  # statistically nothing left to gain
+            if rival is not None and self.best[0] - rival > max(gains) * left:
+                return
+
+    def _round(self, objective: _Objective, model: PairModel) -> None:
+        self.rounds += 1
+        modes = objective.modes
+        if model.hysteretic and self.mode_passes < _MAX_MODE_PASSES:
+            new_modes = _interval_modes(model, self.x)
+            if np.any(new_modes != modes):
+                modes = new_modes
+                self.mode_passes += 1
+        objective.set(self.m2, self.log_q, modes)
+        centre = self.log_q
+        f0 = objective(centre)
+        f_minus, f_plus = objective(centre - _NEWTON_H), objective(centre + _NEWTON_H)
+        curvature = (f_plus - 2.0 * f0 + f_minus) / _NEWTON_H**2
+        slope = (f_plus - f_minus) / (2.0 * _NEWTON_H)
+        if curvature > 0.0 and math.isfinite(curvature):
+            move = float(np.clip(-slope / curvature, -_NEWTON_MAX, _NEWTON_MAX))
+        else:
+            move = -_NEWTON_MAX if slope > 0.0 else _NEWTON_MAX
+        candidates = [(f0, centre), (f_minus, centre - _NEWTON_H), (f_plus, centre + _NEWTON_H)]
+        target = min(max(centre + move, self.bounds[0]), self.bounds[1])
+        candidates.append((objective(target), target))
+        nll, log_q = min(candidates)
+        nll, x, m2 = objective.result(log_q)
+        if not math.isfinite(nll):
+            self.converged = True
+            return
+        change = float(np.sqrt(np.mean((x[:, 0] - self.x[:, 0]) ** 2)))
+        self.nll, self.log_q, self.x, self.m2 = nll, log_q, x, m2
+        self.lam = objective.weights(log_q)
+        if nll < self.best[0]:
+            self.best = (nll, log_q, self.lam, objective.modes, x)
+        if change < self.tol and abs(log_q - centre) < _LOGQ_TOL:
+            self.converged = True
+
+
+def fit_gas_models(
+    model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str
+) -> list[GasFit]:
+    """rw first: it places the steps as single increments; irw starts from its weights (from
+    all-equal weights irw smears a step into a ramp and the reweighting keeps it)."""
+    fits = [GasFit(model_for("rw"), yc, sigma)]
+    fits[0].iterate(_MAX_ROUNDS)
+    if gas != "rw":
+        jumps = np.minimum(fits[0].best[2], 1.0)
+        irw = GasFit(model_for("irw"), yc, sigma, initial_weights=jumps)
+        irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
+        fits = [*fits, irw] if gas == "auto" else [irw]
+    return fits
