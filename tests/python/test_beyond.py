@@ -1,4 +1,4 @@
-"""dualprobe.beyond: the paper's studies with the second-order and hysteresis-aware methods
+"""dualprobe.studies.beyond: the paper's studies with the second-order and hysteresis-aware methods
 (issue 6, "What it must show")."""
 
 from __future__ import annotations
@@ -12,19 +12,18 @@ import numpy as np
 import pytest
 
 from dualprobe import simulate as sim
-
-pytest.importorskip("dualprobe._core", reason="the paper's method runs in the C++ core")
-
-from dualprobe import beyond
-from dualprobe.paper import _jsonable
+from dualprobe.models.inverse import zoh_inverse
 from dualprobe.reference.difference import exact_inverse
+from dualprobe.report.json import jsonable
+from dualprobe.studies import beyond, beyond_report
+from dualprobe.studies.run import run_beyond
 
 
 @pytest.fixture(scope="module")
 def quick(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict[str, Any], Path]:
     """One `run_beyond(quick=True)`: every test below reads its numbers."""
     out = tmp_path_factory.mktemp("beyond")
-    markdown, data = beyond.run_beyond(True, out, progress=False)
+    markdown, data = run_beyond(True, out, progress=False)
     return markdown, data, out
 
 
@@ -42,7 +41,7 @@ def test_zoh_inverse_is_exact_for_gas_constant_over_each_interval(taus: tuple[fl
     profile = sim.multistep_profile(200.0, levels=levels, step_times=step_times)
     t = ts * np.arange(2001)
     measured = sim.simulate_sensor(profile, sim.SensorModel(taus), t)
-    gas = beyond.zoh_inverse(measured, taus, ts)
+    gas = zoh_inverse(measured, taus, ts)
     assert np.isnan(gas[-1])
     # exact up to rounding of ~1e-4 K steps amplified by the inverse (measured <= 3e-9 K)
     np.testing.assert_allclose(gas[:-1], profile(t[:-1]), atol=1e-6)
@@ -51,14 +50,14 @@ def test_zoh_inverse_is_exact_for_gas_constant_over_each_interval(taus: tuple[fl
 def test_zoh_inverse_of_one_time_constant_is_the_papers_inverse() -> None:
     rng = np.random.default_rng(2)
     temps = np.cumsum(rng.standard_normal(500))
-    np.testing.assert_allclose(beyond.zoh_inverse(temps, (12.48,), 0.1),
+    np.testing.assert_allclose(zoh_inverse(temps, (12.48,), 0.1),
                                exact_inverse(temps, 12.48, 0.1), rtol=1e-9, atol=1e-9)
 
 
 def test_zoh_inverse_rejects_bad_time_constants() -> None:
-    # one implementation now (dualprobe.reconstruction.zoh_inverse) with its own wording
+    # one implementation (dualprobe.models.inverse.zoh_inverse) with its own wording
     with pytest.raises(ValueError, match="must be finite and > 0"):
-        beyond.zoh_inverse(np.ones(10), (12.0, -1.0), 0.1)
+        zoh_inverse(np.ones(10), (12.0, -1.0), 0.1)
 
 
 # ------------------------------------------------------------------------------------------
@@ -76,7 +75,7 @@ def test_studies_second_order_within_10_percent_of_the_papers_method(
     values = {row["a_p"] for row in rows}
     assert {0.001, 0.01, 0.1, 0.17, 1.08} <= values
     band = beyond.near_equal_band(study.upper(), rows[0]["noise_std"])
-    worst, _, left_out = beyond.worst_ratio(rows, band=band)
+    worst, _, left_out = beyond_report.worst_ratio(rows, band=band)
     # issue 6: 10 %; measured <= 0.75 % noise-free (B, a_p = 0.01 s), <= 0.21 % with noise
     # (full sweeps of 45 a_p values: 0.77 % and, outside the band, 1.2 %)
     assert worst is not None and worst <= 0.10
@@ -206,7 +205,7 @@ def test_report_section_figures_and_json(quick: tuple[str, dict[str, Any], Path]
         path = out / name
         assert path.suffix == ".png" and path.stat().st_size > 10_000
         assert f"]({name})" in markdown
-    text = json.dumps(_jsonable(data), allow_nan=False)
+    text = json.dumps(jsonable(data), allow_nan=False)
     assert json.loads(text)["settings"]["quick"] is True
     # paper --quick must stay under a minute in all; measured 15 s for this section alone
     # The run time is reported (speed is measured by commands, not asserted by timed tests).

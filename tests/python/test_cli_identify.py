@@ -10,7 +10,7 @@ import pytest
 
 from dualprobe import simulate as sim
 from dualprobe.cli import main
-from dualprobe.paper import identification_record
+from dualprobe.studies.paper import identification_record
 
 
 @pytest.fixture(scope="module")

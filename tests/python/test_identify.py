@@ -16,7 +16,8 @@ from dualprobe.identify import (
     simulate_model,
 )
 from dualprobe.io import EstimationError
-from dualprobe.paper import PAPER_TABLES, RIG, identification_record
+from dualprobe.studies.paper import identification_record
+from dualprobe.studies.paper_setup import PAPER_TABLES, RIG
 
 
 def _exact_record(
