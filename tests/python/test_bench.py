@@ -9,8 +9,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dualprobe.bench import BENCH_TAUS, BENCH_TS, make_pair
 from dualprobe.cli import main
+from dualprobe.workflows.bench import (
+    BENCH_TAUS,
+    BENCH_TS,
+    bench_noise,
+    make_pair,
+    noise_figure,
+    noise_table,
+)
 
 THROUGHPUT_KEYS = (
     "core_samples_per_s",
@@ -37,8 +44,6 @@ def test_make_pair_follows_the_first_order_model() -> None:
 
 
 def test_bench_cli_small(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    pytest.importorskip("dualprobe._core", reason="C++ core not built (pip install -e .)")
-    pytest.importorskip("dualprobe.reference.difference", reason="NumPy reference not written")
     target = tmp_path / "new" / "bench.json"  # the directory is created, as `make bench` needs
     status = main(["bench", "--samples", "20000", "--json", str(target)])
     captured = capsys.readouterr()
@@ -61,9 +66,6 @@ def test_bench_rejects_bad_sample_count(capsys: pytest.CaptureFixture[str]) -> N
 
 @pytest.mark.slow
 def test_noise_study_robust_beats_plain_at_10_hz(tmp_path: Path) -> None:
-    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
-    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
-    from dualprobe.bench import bench_noise, noise_figure, noise_table
 
     # Issue 7's hard case: 10 Hz, 0.1 K noise, gas within +/-5 K.
     rows = bench_noise(noise_levels=(0.1,), sample_rates=(10.0,), duration=600.0, seeds=1)

@@ -7,16 +7,14 @@ import os
 import subprocess
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
+from dualprobe import simulate
 from dualprobe.cli import main
 from dualprobe.io import load_columns, write_columns
-
-if TYPE_CHECKING:
-    from dualprobe.simulate import GasProfile
+from dualprobe.simulate import GasProfile
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -204,8 +202,6 @@ def characterise_csv(
 
 def gas_steps(duration: float, rng: np.random.Generator) -> GasProfile:
     """Gas steps of 100-300 K between 300 K and 1000 K, at times off any sample grid."""
-    from dualprobe import simulate
-
     times = np.cumsum(rng.uniform(80.0, 140.0, size=int(duration / 80.0) + 1))
     times = times[times < duration - 40.0] + rng.uniform(0.0, 1.0)
     levels = [rng.uniform(400.0, 700.0)]
@@ -226,9 +222,6 @@ def test_pt100_pair_at_10_hz_with_defaults(
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
 ) -> None:
-    simulate = pytest.importorskip("dualprobe.simulate")
-    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
-    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
     rng = np.random.default_rng(seed)
     duration, taus = 900.0, (12.48, 28.95)
     rec = simulate.simulate_pair(
@@ -264,9 +257,6 @@ def test_pt100_pair_at_10_hz_with_defaults(
 def test_thermocouple_pair_at_1_khz_with_defaults(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    simulate = pytest.importorskip("dualprobe.simulate")
-    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
-    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
     rng = np.random.default_rng(21)
     duration, taus = 10.0, (0.020, 0.080)  # 10^4 samples, 50 band periods
     profile = simulate.fluctuating_profile(duration, mean=550.0, std=10.0, bandwidth=5.0, rng=rng)
@@ -297,9 +287,6 @@ def test_thermocouple_pair_at_1_khz_with_defaults(
 
 @pytest.fixture(scope="module")
 def pt100_csv(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    simulate = pytest.importorskip("dualprobe.simulate")
-    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
-    pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
     rng = np.random.default_rng(31)
     rec = simulate.simulate_pair(
         gas_steps(600.0, rng),
@@ -392,7 +379,6 @@ def test_hysteresis_adds_heating_and_cooling(
 
 
 def test_noise_only_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
     rng = np.random.default_rng(4)
     t = np.arange(3000) * 0.1
     path = tmp_path / "noise.csv"

@@ -6,11 +6,8 @@ from pathlib import Path
 
 import pytest
 
-import dualprobe.demo
 from dualprobe.cli import main
-
-pytest.importorskip("dualprobe.estimation", reason="estimation module not written yet")
-pytest.importorskip("dualprobe.reconstruction", reason="reconstruction module not written yet")
+from dualprobe.workflows import demo
 
 
 @pytest.mark.slow
@@ -18,7 +15,7 @@ def test_demo_writes_report_and_figure(
     tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     out = tmp_path / "demo"
-    result = dualprobe.demo.run_demo(out)
+    result = demo.run_demo(out)
     report, figure = out / "report.md", out / "demo.png"
     assert (result.report, result.figure) == (report, figure)
     assert figure.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -36,11 +33,11 @@ def test_demo_writes_report_and_figure(
     # The command prints the summary of that same run (not repeated: it takes seconds).
     calls: list[tuple[object, int]] = []
 
-    def fake_run_demo(out_dir: object, *, seed: int) -> dualprobe.demo.DemoResult:
+    def fake_run_demo(out_dir: object, *, seed: int) -> demo.DemoResult:
         calls.append((out_dir, seed))
         return result
 
-    monkeypatch.setattr(dualprobe.demo, "run_demo", fake_run_demo)
+    monkeypatch.setattr(demo, "run_demo", fake_run_demo)
     status = main(["demo", "--out", str(out), "--seed", "5"])
     captured = capsys.readouterr()
     assert status == 0, captured.err

@@ -42,7 +42,7 @@ def _exact_record(
 
 
 # --------------------------------------------------------------------------------------------
-# Tables I and II (the tolerances; the rig is described in dualprobe.paper)
+# Tables I and II (the tolerances; the rig is described in dualprobe.studies.paper)
 # --------------------------------------------------------------------------------------------
 
 

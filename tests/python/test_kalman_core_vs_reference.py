@@ -12,13 +12,10 @@ import math
 import numpy as np
 import pytest
 
+from dualprobe import _core as core
 from dualprobe import simulate
 from dualprobe.reconstruction import fit_smoother
 from dualprobe.reference import kalman
-
-core = pytest.importorskip("dualprobe._core")
-if not hasattr(core, "kalman_filter"):
-    pytest.skip("dualprobe._core built without the Kalman bindings", allow_module_level=True)
 
 TS = 0.1
 SIGMA = 0.1

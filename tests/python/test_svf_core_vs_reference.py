@@ -12,14 +12,11 @@ from typing import Any
 import numpy as np
 import pytest
 
+from dualprobe import _core
 from dualprobe import simulate as sim
 from dualprobe.estimation import svf as estimation_svf
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 from dualprobe.reference import svf
-
-_core = pytest.importorskip("dualprobe._core")
-if not hasattr(_core, "estimate_svf"):
-    pytest.skip("dualprobe._core was built without the SVF bindings", allow_module_level=True)
 
 PT1 = (12.48,)
 PT2 = (28.95,)

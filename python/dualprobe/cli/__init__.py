@@ -27,15 +27,9 @@ def build_parser() -> ArgumentParser:
         dest="command", metavar="COMMAND", parser_class=ArgumentParser
     )
     for name in COMMANDS:
-        module_name = f"dualprobe.cli.{name}"
-        try:
-            module = importlib.import_module(module_name)
-        except ModuleNotFoundError as exc:
-            # A command whose module is not written yet is left out; a missing dependency
-            # *inside* an existing module is a real error and propagates.
-            if exc.name == module_name:
-                continue
-            raise
+        # Every command must import: a missing or broken module is an error (exit 1 from
+        # main), never a command silently left out of the parser.
+        module = importlib.import_module(f"dualprobe.cli.{name}")
         module.register(subparsers)
     return parser
 

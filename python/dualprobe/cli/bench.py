@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
@@ -88,21 +87,9 @@ def _print_throughput(result: dict[str, Any]) -> None:
 
 
 def _noise_study(out: Path, seeds: int) -> list[dict[str, Any]]:
-    from dualprobe.bench import bench_noise, noise_figure, noise_table
+    from dualprobe.workflows.bench import noise_study_report
 
-    rows = bench_noise(seeds=seeds, progress=sys.stderr.isatty())
-    table = noise_table(rows)
-    noise_figure(rows, out / "noise.png")
-    (out / "noise.md").write_text(
-        "# Plain vs noise-robust method\n\n"
-        "Unit-gain first-order Pt-100 pair (12.48 s, 28.95 s), multistep gas within +/-5 K, "
-        f"600 s records, {seeds} seed(s) per point, noise level not given to either method. "
-        "plain: difference-equation GTLS + weighted exact inverse (the paper); robust: "
-        "`method=auto` (state-variable filter) + smoother (the `characterise` defaults). "
-        "tau error: the larger relative error of the two sensors (median over seeds); RMSE "
-        "against the true gas temperature, samples right beside a jump excluded.\n\n"
-        f"{table}\n\n![time-constant error and RMSE against noise](noise.png)\n"
-    )
+    rows, table = noise_study_report(out, seeds, progress=sys.stderr.isatty())
     print(table)
     print(f"wrote {out / 'noise.md'} and {out / 'noise.png'}")
     return rows
@@ -110,8 +97,8 @@ def _noise_study(out: Path, seeds: int) -> list[dict[str, Any]]:
 
 @handle_errors
 def run(args: argparse.Namespace) -> int:
-    from dualprobe.bench import BenchUnavailable, bench_throughput
-    from dualprobe.characterise import jsonable
+    from dualprobe.report.json import write_json
+    from dualprobe.workflows.bench import BenchUnavailable, bench_throughput
 
     if args.json is not None:
         target = Path(args.json)
@@ -138,6 +125,5 @@ def run(args: argparse.Namespace) -> int:
     if args.section in ("noise", "all"):
         result["noise_study"] = _noise_study(out, args.seeds)
     if args.json is not None:
-        # Strict JSON: a failed grid point's NaN becomes null.
-        Path(args.json).write_text(json.dumps(jsonable(result), indent=2, allow_nan=False) + "\n")
+        write_json(result, args.json)  # strict JSON: a failed grid point's NaN becomes null
     return 0

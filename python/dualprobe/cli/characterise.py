@@ -7,18 +7,18 @@ import math
 from pathlib import Path
 from typing import Any
 
-from dualprobe.characterise import (
-    METHODS,
-    RECONSTRUCTION_MODES,
-    characterise_file,
-    write_json,
-    write_reconstruction,
-)
 from dualprobe.cli.common import (
     UsageError,
     add_time_arguments,
     check_writable,
     handle_errors,
+)
+from dualprobe.workflows.characterise import (
+    METHODS,
+    RECONSTRUCTION_MODES,
+    characterise_file,
+    write_json,
+    write_reconstruction,
 )
 
 __all__ = ["register", "run"]

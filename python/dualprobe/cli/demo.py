@@ -27,7 +27,7 @@ def register(subparsers: Any) -> None:
 
 @handle_errors
 def run(args: argparse.Namespace) -> int:
-    from dualprobe.demo import run_demo
+    from dualprobe.workflows.demo import run_demo
 
     result = run_demo(args.out, seed=args.seed)
     print(result.summary())

@@ -4,7 +4,6 @@ measurement to a sensor (what MATLAB's tfest / compare report)."""
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 from typing import Any
 
@@ -13,6 +12,7 @@ import numpy as np
 from dualprobe.cli.common import UsageError, add_time_arguments, handle_errors
 from dualprobe.identify import HOLDS, fit_transfer_function
 from dualprobe.io import InputError, load_columns
+from dualprobe.report.json import write_json
 
 __all__ = ["register", "run"]
 
@@ -73,11 +73,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json is not None:
         document = {"file": str(args.data), "input": args.input, "output": args.output}
         document.update(fit.to_dict())
-        text = json.dumps(document, indent=2, allow_nan=False) + "\n"
-        try:
-            Path(args.json).write_text(text, encoding="utf-8")
-        except OSError as exc:
-            raise InputError(f"{args.json}: cannot write ({exc.strerror or exc})") from None
+        write_json(document, args.json)
     print(f"{args.data}: {args.input} -> {args.output}")
     print(fit.summary())
     return 0

@@ -42,7 +42,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--json {target}: is a directory")
         if not target.parent.is_dir():
             raise UsageError(f"--json {target}: directory {target.parent} does not exist")
-    from dualprobe.paper import run_paper
+    from dualprobe.studies import run_paper
 
     data = run_paper(
         quick=args.quick, out_dir=out, json_path=args.json, progress=not args.no_progress

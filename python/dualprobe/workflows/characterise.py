@@ -2,20 +2,20 @@
 
 from __future__ import annotations
 
-import json
 import math
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
+from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
 from dualprobe.io import EstimationError, InputError, load_columns, write_columns
-
-if TYPE_CHECKING:
-    from dualprobe.estimation import PairEstimate
+from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
+from dualprobe.reconstruction import reconstruct_pair
+from dualprobe.report.json import jsonable
+from dualprobe.report.json import write_json as write_json_document
 
 __all__ = [
     "METHODS",
@@ -23,11 +23,8 @@ __all__ = [
     "Characterisation",
     "characterise_arrays",
     "characterise_file",
-    "jsonable",
 ]
 
-METHODS = ("auto", "svf", "ls", "tls", "gtls")
-RECONSTRUCTION_MODES = ("smoother", "filter", "inverse")
 ORDERS = (1, 2)
 
 
@@ -113,26 +110,6 @@ class Characterisation:
                 text += f", RMSE vs {self.reference_column} {self.rmse_vs_reference:.4g} K"
             lines.append(text)
         return "\n".join(lines)
-
-
-def jsonable(value: Any) -> Any:
-    """Convert numpy scalars/arrays and tuples to JSON types; non-finite floats become null."""
-    if isinstance(value, Mapping):
-        return {str(key): jsonable(item) for key, item in value.items()}
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, (list, tuple)):
-        return [jsonable(item) for item in value]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        number = float(value)
-        return number if math.isfinite(number) else None
-    if value is None or isinstance(value, str):
-        return value
-    return str(value)
 
 
 def _parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
@@ -225,8 +202,6 @@ def characterise_arrays(
     sigma = _parse_noise_std(noise_std)
     _check_excitation(t1, t2, columns)
 
-    from dualprobe.estimation import characterise_pair
-
     estimate = characterise_pair(
         t1, t2, ts, method=method, order=order, hysteresis=hysteresis, noise_std=sigma
     )
@@ -247,8 +222,6 @@ def characterise_arrays(
     gas: np.ndarray | None = None
     rmse: float | None = None
     if reconstruction is not None:
-        from dualprobe.reconstruction import reconstruct_pair
-
         heat = estimate.time_constants_heat
         cool = estimate.time_constants_cool
         hysteretic = hysteresis and heat is not None and cool is not None
@@ -356,12 +329,7 @@ def characterise_file(
 
 def write_json(result: Characterisation, path: str | os.PathLike[str]) -> None:
     """Write the `--json` document (strict JSON: non-finite numbers become null)."""
-    path = Path(path)
-    text = json.dumps(result.to_json_dict(), indent=2, allow_nan=False) + "\n"
-    try:
-        path.write_text(text)
-    except OSError as exc:
-        raise InputError(f"{path}: cannot write ({exc.strerror or exc})") from None
+    write_json_document(result.to_json_dict(), path)
 
 
 def write_reconstruction(result: Characterisation, path: str | os.PathLike[str]) -> None:

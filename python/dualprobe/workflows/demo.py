@@ -9,15 +9,14 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-from dualprobe.characterise import Characterisation, characterise_arrays
+from dualprobe import simulate
 from dualprobe.io import InputError
-
-if TYPE_CHECKING:
-    from dualprobe.simulate import PairRecording
+from dualprobe.report.plots import pyplot, save
+from dualprobe.simulate import PairRecording
+from dualprobe.workflows.characterise import Characterisation, characterise_arrays
 
 __all__ = ["DemoResult", "run_demo"]
 
@@ -67,11 +66,7 @@ class DemoResult:
 def _figure(
     path: Path, rec: PairRecording, gas_hat: np.ndarray, characterisation: Characterisation
 ) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     t, tg, t1, t2, jumps = rec.t, rec.tg, rec.t1, rec.t2, rec.jumps
     est = characterisation.estimate
     fig, (full, zoom) = plt.subplots(2, 1, figsize=(10, 8), constrained_layout=True)
@@ -103,14 +98,11 @@ def _figure(
     span = float(np.ptp(values)) or 1.0
     zoom.set_ylim(values.min() - 0.1 * span, values.max() + 0.1 * span)
     zoom.set_title("zoom on the first gas step")
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, path, tight=False)  # constrained layout
 
 
 def run_demo(out_dir: str | os.PathLike[str] = "out/demo", *, seed: int = 2024) -> DemoResult:
     """Simulate, characterise with the CLI defaults, reconstruct, write report and figure."""
-    from dualprobe import simulate
-
     started = time.perf_counter()
     out = Path(out_dir)
     if out.exists() and not out.is_dir():

@@ -13,10 +13,16 @@ import platform
 import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import scipy.signal
+
+from dualprobe import simulate as sim
+from dualprobe.estimation import characterise_pair
+from dualprobe.reconstruction import reconstruct_pair
+from dualprobe.report.plots import pyplot, save
 
 __all__ = [
     "DEFAULT_SAMPLES",
@@ -25,6 +31,7 @@ __all__ = [
     "bench_throughput",
     "make_pair",
     "noise_figure",
+    "noise_study_report",
     "noise_table",
 ]
 
@@ -193,10 +200,6 @@ def bench_noise(
     """
     from tqdm import tqdm
 
-    from dualprobe import simulate as sim
-    from dualprobe.estimation import characterise_pair
-    from dualprobe.reconstruction import reconstruct_pair
-
     sensors = (sim.SensorModel((time_constants[0],)), sim.SensorModel((time_constants[1],)))
     truth = np.asarray(time_constants, dtype=float)
     settings = {PLAIN: ("gtls", "inverse"), ROBUST: ("auto", "smoother")}
@@ -290,11 +293,7 @@ def noise_table(rows: list[dict[str, Any]]) -> str:
 
 def noise_figure(rows: list[dict[str, Any]], path: str | os.PathLike[str]) -> None:
     """Time-constant error and reconstruction RMSE against noise, one line per rate and method."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     rates = sorted({row["sample_rate"] for row in rows})
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.5), constrained_layout=True)
@@ -340,5 +339,25 @@ def noise_figure(rows: list[dict[str, Any]], path: str | os.PathLike[str]) -> No
     right.set_title("gas temperature reconstruction")
     left.legend(fontsize="small")
     right.legend(fontsize="x-small", ncol=2)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save(fig, Path(path), tight=False)  # constrained layout
+
+
+def noise_study_report(
+    out: Path, seeds: int, *, progress: bool
+) -> tuple[list[dict[str, Any]], str]:
+    """:func:`bench_noise` written as ``noise.md`` (with :func:`noise_table`) and ``noise.png``
+    (:func:`noise_figure`) into ``out``; returns the rows and the table."""
+    rows = bench_noise(seeds=seeds, progress=progress)
+    table = noise_table(rows)
+    noise_figure(rows, out / "noise.png")
+    (out / "noise.md").write_text(
+        "# Plain vs noise-robust method\n\n"
+        "Unit-gain first-order Pt-100 pair (12.48 s, 28.95 s), multistep gas within +/-5 K, "
+        f"600 s records, {seeds} seed(s) per point, noise level not given to either method. "
+        "plain: difference-equation GTLS + weighted exact inverse (the paper); robust: "
+        "`method=auto` (state-variable filter) + smoother (the `characterise` defaults). "
+        "tau error: the larger relative error of the two sensors (median over seeds); RMSE "
+        "against the true gas temperature, samples right beside a jump excluded.\n\n"
+        f"{table}\n\n![time-constant error and RMSE against noise](noise.png)\n"
+    )
+    return rows, table
