@@ -9,7 +9,8 @@ from dualprobe.cli import COMMANDS, build_parser, main, parser_commands
 
 
 def test_every_command_module_imports_and_registers() -> None:
-    assert parser_commands(build_parser()) == list(COMMANDS)
+    registered = parser_commands(build_parser())  # with aliases such as "characterize"
+    assert [name for name in registered if name in COMMANDS] == list(COMMANDS)
 
 
 def test_a_missing_command_module_is_an_error(
