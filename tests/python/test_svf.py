@@ -10,7 +10,7 @@ import scipy.linalg
 import scipy.signal
 
 from dualprobe import simulate as sim
-from dualprobe.reference import svf
+from dualprobe.reference import svf, svf_filter
 
 PT1 = sim.SensorModel((12.48,))
 PT2 = sim.SensorModel((28.95,))
@@ -39,7 +39,7 @@ def _pair(
 def test_closed_form_discretisation_matches_matrix_exponential(
     tf: float, ts: float, m: int, hold: str
 ) -> None:
-    disc = svf.discretise_filter(tf, ts, m, hold)
+    disc = svf_filter.discretise_filter(tf, ts, m, hold)
     a = (np.eye(m, k=-1) - np.eye(m)) / tf
     aug = np.zeros((m + 2, m + 2))
     aug[:m, :m] = a * ts
@@ -62,7 +62,7 @@ def test_filtered_derivatives_are_exact_for_piecewise_linear_input() -> None:
     u = np.cumsum(rng.standard_normal(400))
     u -= u[0]
     t = ts * np.arange(u.size)
-    x = svf.filtered_derivatives(u, svf.discretise_filter(tf, ts, m))
+    x = svf_filter.filtered_derivatives(u, svf_filter.discretise_filter(tf, ts, m))
     den = np.poly1d([tf, 1.0]) ** m
     for j in range(m):
         num = np.poly1d([tf**j] + [0.0] * j)  # (tf s)^j
@@ -76,7 +76,7 @@ def test_noise_covariance_matches_monte_carlo(order: int, static: str, tf: float
     ts, n = 0.01, 200_000
     rng = np.random.default_rng(7)
     s1, s2 = 0.3, 0.7
-    disc = svf.discretise_filter(tf, ts, order + 1)
+    disc = svf_filter.discretise_filter(tf, ts, order + 1)
     z = svf.regression_columns(s1 * rng.standard_normal(n), s2 * rng.standard_normal(n), disc,
                                order, static=static)[:, 1000:]
     empirical = z @ z.T / z.shape[1]
@@ -142,19 +142,19 @@ def test_hysteresis_noise_free() -> None:
 def test_direction_indicator_ignores_the_noise_of_its_own_interval() -> None:
     rng = np.random.default_rng(5)
     x = rng.standard_normal(400_000)
-    h = svf.direction_indicator(x, 10)
+    h = svf_filter.direction_indicator(x, 10)
     step = np.diff(x)
     # independent: mean(h * dx) ~ N(0, ~1/sqrt(N)); including the interval would give ~0.2
     assert abs(np.mean(h * step)) < 5.0 * np.std(step) / math.sqrt(step.size)
     ramp = np.concatenate((np.linspace(0, 10, 50), np.linspace(10, 0, 50)))
-    hr = svf.direction_indicator(ramp, 3)
+    hr = svf_filter.direction_indicator(ramp, 3)
     assert np.all(hr[:48] == 1.0)
     assert np.all(hr[51:] == 0.0)
 
 
 def test_dead_zone_leaves_flat_stretches_undecided() -> None:
     x = np.concatenate((np.zeros(100), np.linspace(0.0, 20.0, 100)))
-    h = svf.direction_indicator(x, 5, sigma=0.1, dead_zone=2.0)
+    h = svf_filter.direction_indicator(x, 5, sigma=0.1, dead_zone=2.0)
     assert np.all(h[:90] == 0.5)
     assert np.all(h[105:] == 1.0)
 
@@ -173,7 +173,7 @@ def test_smallest_generalised_eigenvalue_is_one_with_the_true_noise() -> None:
 def test_effective_samples_model_agrees_with_residual() -> None:
     rng = np.random.default_rng(6)
     n, ts, tf = 100_000, 0.01, 0.1
-    disc = svf.discretise_filter(tf, ts, 2)
+    disc = svf_filter.discretise_filter(tf, ts, 2)
     theta = np.array([1.3, 2.9, -1.0])
     z = svf.regression_columns(0.1 * rng.standard_normal(n), 0.1 * rng.standard_normal(n), disc, 1)
     model = svf.effective_samples(disc, theta, 1, 0.1, 0.1, n)
@@ -197,7 +197,7 @@ def test_constant_signals_raise() -> None:
 
 def test_bad_arguments() -> None:
     with pytest.raises(ValueError, match="tf > 0"):
-        svf.discretise_filter(0.0, 0.1, 2)
+        svf_filter.discretise_filter(0.0, 0.1, 2)
     with pytest.raises(ValueError, match="static model"):
         svf.column_maps(1, "cubic")
     with pytest.raises(ValueError, match="order 1"):
@@ -208,7 +208,7 @@ def test_heating_and_cooling_columns_add_up_to_the_derivative_column() -> None:
     rng = np.random.default_rng(8)
     x = np.cumsum(rng.standard_normal(2000))
     y = np.cumsum(rng.standard_normal(2000))
-    disc = svf.discretise_filter(0.7, 0.1, 2)
+    disc = svf_filter.discretise_filter(0.7, 0.1, 2)
     h = (rng.random(1999) > 0.5).astype(float)
     split = svf.regression_columns(x, y, disc, 1, (h, 1.0 - h))
     whole = svf.regression_columns(x, y, disc, 1)

@@ -16,7 +16,7 @@ from dualprobe import _core
 from dualprobe import simulate as sim
 from dualprobe.estimation import svf as estimation_svf
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
-from dualprobe.reference import svf
+from dualprobe.reference import svf, svf_filter
 
 PT1 = (12.48,)
 PT2 = (28.95,)
@@ -77,10 +77,10 @@ def _settings(t1: np.ndarray, t2: np.ndarray, ts: float, order: int, static: str
     out: dict[str, Any] = {"tf": tf, "order": order, "static": static, "sigma1": sigma[0],
                            "sigma2": sigma[1]}
     if hysteresis:
-        disc = svf.discretise_filter(tf, ts, 2)
+        disc = svf_filter.discretise_filter(tf, ts, 2)
         out["hysteresis"] = True
         out["direction_half_window"] = tuple(
-            svf.choose_direction_half_window(x, disc, s, estimation_svf.DIRECTION_TOLERANCE)
+            svf_filter.choose_direction_half_window(x, disc, s, estimation_svf.DIRECTION_TOLERANCE)
             for x, s in ((t1, sigma[0]), (t2, sigma[1])))
     return out
 
@@ -179,7 +179,7 @@ def test_projected_scatter_and_noise_covariance_match_reference() -> None:
     t1, t2, ts = _small_moves(0, "affine")
     for static in ("unit", "affine"):
         for order in (1, 2):
-            disc = svf.discretise_filter(4.0, ts, order + 1)
+            disc = svf_filter.discretise_filter(4.0, ts, order + 1)
             est = _core.SvfEstimator(ts, 4.0, order=order, static=static, sigma1=0.1, sigma2=0.2)
             est.update_batch(t1, t2)
             cols = svf.regression_columns(t1, t2, disc, order, static=static)
