@@ -10,7 +10,7 @@ DEB_PACKAGES := make g++ libeigen3-dev libgtest-dev clang gcc-arm-none-eabi \
 	libstdc++-arm-none-eabi-newlib libnewlib-arm-none-eabi qemu-system-arm
 STAMP := build/.stamps
 
-.PHONY: all demo test setup deb venv cpp-test asan-test pytest lint firmware bench paper clean
+.PHONY: all demo test setup deb venv cpp-test asan-test pytest lint stubs firmware bench paper clean
 
 all: test
 
@@ -59,11 +59,20 @@ asan-test: setup
 	$(CMAKE) --build --preset asan
 	$(CTEST) --preset asan
 
+# ruff; the import contracts of pyproject.toml (layers, the reference is a check, no cycles);
+# the checked-in _core.pyi against the built extension.
 lint: setup
-	$(VENV)/bin/ruff check python tests/python
+	$(VENV)/bin/ruff check python tests/python scripts
+	$(VENV)/bin/lint-imports
+	$(VPY) scripts/stubs.py --check
 
+# Regenerate python/dualprobe/_core.pyi from the built extension (after changing bindings/).
+stubs: setup
+	$(VPY) scripts/stubs.py
+
+# Two workers (the machine has 2 cores); whole files per worker so module fixtures run once.
 pytest: setup
-	$(VPY) -m pytest
+	$(VPY) -m pytest -n 2 --dist loadfile
 
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
