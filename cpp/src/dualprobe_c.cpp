@@ -163,7 +163,13 @@ void dp_diff_break_chain_f32(dp_diff_instance_f32* instance) {
 
 dp_status dp_diff_update_f32(dp_diff_instance_f32* instance, float t1, float t2) {
   if (instance == nullptr) return DP_STATUS_INVALID_ARGUMENT;
-  return to_c(estimator(instance)->update(t1, t2));
+  Estimator* est = estimator(instance);
+  // The refusal (DifferenceEstimator::update's: break the chain, non_finite_input) spelled out
+  // here: left inside update(), it makes GCC copy the instance pointer on every call, one
+  // instruction over the M4F's 60-instruction budget for the finite path.
+  if (std::isfinite(t1) && std::isfinite(t2)) return to_c(est->update(t1, t2));
+  est->break_chain();
+  return DP_STATUS_NON_FINITE_INPUT;
 }
 
 dp_status dp_diff_update_block_f32(dp_diff_instance_f32* instance, const float* t1,

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -83,7 +84,7 @@ TEST_P(ExactnessFloat, NoiseFreeWithinFloatTolerance) {
 INSTANTIATE_TEST_SUITE_P(AllMethods, ExactnessFloat,
                          ::testing::Values(Method::ls, Method::tls, Method::gtls), method_name);
 
-TEST(DifferenceEstimator, NonFiniteSampleIsRefusedAndStateUntouched) {
+TEST(DifferenceEstimator, NonFiniteSampleIsRefusedAndBreaksTheChain) {
   const auto series = dualprobe::test::difference_equation_pair(500, kTau1, kTau2, kTs);
   auto estimator = make_estimator<double>(Method::gtls);
   auto reference = make_estimator<double>(Method::gtls);
@@ -95,13 +96,55 @@ TEST(DifferenceEstimator, NonFiniteSampleIsRefusedAndStateUntouched) {
       EXPECT_EQ(estimator.update(nan, 1.0), Status::non_finite_input);
       EXPECT_EQ(estimator.update(1.0, inf), Status::non_finite_input);
       EXPECT_EQ(estimator.update(-inf, nan), Status::non_finite_input);
-      EXPECT_EQ(estimator.scatter(), before);
+      EXPECT_EQ(estimator.scatter(), before);  // the accumulated data are kept
+      reference.break_chain();  // ... and the chain is broken, as by break_chain()
     }
     estimator.update(series.t1[k], series.t2[k]);
     reference.update(series.t1[k], series.t2[k]);
   }
   EXPECT_EQ(estimator.scatter(), reference.scatter());
   EXPECT_EQ(estimator.rows(), reference.rows());
+}
+
+// Issue 12: a NaN that *replaces* a sample. update() and update_block() both drop the two
+// differences that touch it; no row spans 2 Ts (before the fix update() formed one from the
+// samples either side of the NaN).
+TEST(DifferenceEstimator, NanReplacingASampleDropsItsTwoDifferences) {
+  const auto series = dualprobe::test::difference_equation_pair(600, kTau1, kTau2, kTs);
+  const std::size_t n = series.t1.size();
+  for (const std::size_t replaced : {std::size_t{1}, std::size_t{250}, n - 2}) {
+    std::vector<double> t1 = series.t1, t2 = series.t2;
+    t1[replaced] = std::numeric_limits<double>::quiet_NaN();
+    // The scatter of the record without rows k = replaced and k = replaced + 1, summed here.
+    Eigen::Matrix3d expected = Eigen::Matrix3d::Zero();
+    double expected_rows = 0.0;
+    for (std::size_t k = 1; k < n; ++k) {
+      if (k == replaced || k == replaced + 1) continue;
+      const Eigen::Vector3d z(t1[k] - t1[k - 1], t1[k - 1] - t2[k - 1], t2[k] - t2[k - 1]);
+      expected += z * z.transpose();
+      expected_rows += 1.0;
+    }
+    auto single = make_estimator<double>(Method::gtls);
+    for (std::size_t k = 0; k < n; ++k) {
+      EXPECT_EQ(single.update(t1[k], t2[k]) == Status::ok, k != replaced) << k;
+    }
+    auto block = make_estimator<double>(Method::gtls);
+    EXPECT_EQ(block.update_block(t1.data(), t2.data(), n), 1u);
+    EXPECT_EQ(single.rows(), expected_rows) << replaced;  // n - 3: one chain lost 2 rows
+    EXPECT_EQ(expected_rows, double(n - 3));
+    const double scale = expected.cwiseAbs().maxCoeff();
+    EXPECT_LE((single.scatter() - expected).cwiseAbs().maxCoeff(), 1e-12 * scale) << replaced;
+    // update() and update_block() agree to the last bit.
+    EXPECT_EQ(block.scatter(), single.scatter());
+    EXPECT_EQ(block.rows(), single.rows());
+    const auto a = single.solve(), b = block.solve();
+    ASSERT_EQ(a.status, Status::ok);
+    EXPECT_EQ(a.tau1, b.tau1);
+    EXPECT_EQ(a.tau2, b.tau2);
+    // Dropping two rows of exact difference-equation data leaves the estimate exact.
+    EXPECT_NEAR(a.tau1, kTau1, 1e-8);
+    EXPECT_NEAR(a.tau2, kTau2, 1e-8);
+  }
 }
 
 TEST(DifferenceEstimator, InvalidConfigurationLeavesEstimatorUntouched) {

@@ -101,6 +101,26 @@ def test_non_finite_samples_are_refused_not_propagated() -> None:
     assert out["status"] == "ok" and np.isfinite(out["tau1"])
 
 
+def test_a_nan_replacing_a_sample_drops_its_two_differences() -> None:
+    """Issue 12: update() and update_batch() both break the chain at a refused sample, so no
+    row spans 2 Ts: the scatter is the reference's without the two rows that touch it."""
+    rec = _noisy_pair(7)
+    t1 = rec.t1.copy()
+    t1[500] = np.nan
+    single = _core.DifferenceEstimator(rec.ts, method="gtls", sigma1=0.05, sigma2=0.05)
+    statuses = [single.update(float(a), float(b)) for a, b in zip(t1, rec.t2, strict=True)]
+    assert statuses.count("non_finite_input") == 1 and statuses[500] == "non_finite_input"
+    batch = _core.DifferenceEstimator(rec.ts, method="gtls", sigma1=0.05, sigma2=0.05)
+    assert batch.update_batch(t1, rec.t2) == 1
+    assert single.rows == batch.rows == t1.size - 3
+    np.testing.assert_array_equal(single.scatter, batch.scatter)
+    rows = ref.regression_rows(np.nan_to_num(t1), rec.t2)
+    keep = np.ones(rows.shape[0], dtype=bool)
+    keep[[499, 500]] = False  # rows k = 500, 501 (row index k - 1) touch sample 500
+    expected = rows[keep].T @ rows[keep]
+    np.testing.assert_allclose(single.scatter, expected, rtol=1e-12, atol=1e-12 * np.max(expected))
+
+
 def test_bad_arguments_raise_value_error() -> None:
     x = np.zeros(10)
     with pytest.raises(ValueError, match="method"):

@@ -106,8 +106,15 @@ class DifferenceEstimator {
   // next update starts a new chain of differences instead of spanning the gap.
   void break_chain() noexcept { has_previous_ = false; }
 
+  // One sample pair. A non-finite sample is refused (non_finite_input) and breaks the chain of
+  // differences, as update_block does: the accumulated data are kept, but the next sample
+  // starts a new chain instead of forming a difference across the refused one (which would
+  // span 2 Ts and fit the model with the wrong sample interval).
   Status update(Scalar t1, Scalar t2) noexcept {
-    if (!std::isfinite(t1) || !std::isfinite(t2)) return Status::non_finite_input;
+    if (!std::isfinite(t1) || !std::isfinite(t2)) {
+      has_previous_ = false;
+      return Status::non_finite_input;
+    }
     if (has_previous_) {
       const Row z(t1 - previous1_, previous1_ - previous2_, t2 - previous2_);
       // Always through lambda: multiplying by 1 is exact, and the branch costs the M4F more

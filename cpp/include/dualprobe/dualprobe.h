@@ -31,7 +31,7 @@ typedef enum dp_status {
   DP_STATUS_OK = 0,
   DP_STATUS_INSUFFICIENT_EXCITATION = 1, /* too few rows, or signals that do not move enough */
   DP_STATUS_INFEASIBLE = 2,              /* a solution that is not physical (b outside (0,1), ...) */
-  DP_STATUS_NON_FINITE_INPUT = 3,        /* NaN/Inf sample refused, state untouched */
+  DP_STATUS_NON_FINITE_INPUT = 3,        /* NaN/Inf sample refused (see each update) */
   DP_STATUS_INVALID_ARGUMENT = 4,        /* bad configuration or null pointer, state untouched */
   DP_STATUS_NOT_READY = 5                /* no result yet (e.g. first sample of a reconstruction) */
 } dp_status;
@@ -88,12 +88,13 @@ void dp_diff_reset_f32(dp_diff_instance_f32 *instance);
  * so the next update starts a new chain of differences instead of spanning the gap. */
 void dp_diff_break_chain_f32(dp_diff_instance_f32 *instance);
 
-/* One sample pair (K). O(1). A non-finite sample returns DP_STATUS_NON_FINITE_INPUT and leaves
- * the state untouched. */
+/* One sample pair (K). O(1). A non-finite sample returns DP_STATUS_NON_FINITE_INPUT, keeps the
+ * accumulated data and breaks the chain of differences (as dp_diff_break_chain_f32): the next
+ * sample starts a new chain, so no difference spans the refused sample. */
 dp_status dp_diff_update_f32(dp_diff_instance_f32 *instance, float t1, float t2);
 
 /* block_size sample pairs, exactly as block_size calls of dp_diff_update_f32; returns the
- * first non-ok status (the refused samples are skipped, the others accumulated). */
+ * first non-ok status (a refused sample breaks the chain, the others are accumulated). */
 dp_status dp_diff_update_block_f32(dp_diff_instance_f32 *instance, const float *t1,
                                    const float *t2, uint32_t block_size);
 

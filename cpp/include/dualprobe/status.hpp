@@ -8,7 +8,7 @@ enum class Status : int {
   ok = 0,
   insufficient_excitation = 1,  // too few samples, or the signals do not move enough to solve
   infeasible = 2,               // a solution exists but is not physical (b outside (0,1), beta <= 0)
-  non_finite_input = 3,         // NaN or Inf sample refused; state untouched
+  non_finite_input = 3,         // NaN or Inf sample refused (a difference chain is broken)
   invalid_argument = 4,         // configuration out of range; state untouched
   not_ready = 5,                // the estimator has no solution yet
 };

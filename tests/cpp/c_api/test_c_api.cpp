@@ -120,7 +120,7 @@ TEST(CApi, NoiseFreePairGivesTheTrueTimeConstants) {
   EXPECT_NEAR(r.b1, r.b2 / r.beta, 1e-6f * r.b1);  // b1 = b2 / beta by definition
 }
 
-TEST(CApi, NonFiniteSamplesAreRefusedWithoutTouchingTheState) {
+TEST(CApi, NonFiniteSamplesAreRefusedKeepTheDataAndBreakTheChain) {
   const Series s = realistic(600);
   dp_diff_instance_f32 fed, twin;
   const dp_diff_config_f32 c = config(DP_METHOD_GTLS, 0.999f);
@@ -137,12 +137,15 @@ TEST(CApi, NonFiniteSamplesAreRefusedWithoutTouchingTheState) {
                               std::pair{kNan, kInf}}) {
         EXPECT_EQ(dp_diff_update_f32(&fed, bad.first, bad.second), DP_STATUS_NON_FINITE_INPUT);
       }
-      EXPECT_EQ(scatter(fed), before);
+      EXPECT_EQ(scatter(fed), before);  // the accumulated data are untouched
       EXPECT_EQ(dp_diff_rows_f32(&fed), rows);
+      dp_diff_break_chain_f32(&twin);  // ... and the chain is broken
     }
   }
-  // Refused samples leave no trace: the next difference is against the last good sample.
+  // Refused samples break the chain: the next sample starts new differences, no row spans
+  // the refused one.
   EXPECT_EQ(scatter(fed), scatter(twin));
+  EXPECT_EQ(dp_diff_rows_f32(&fed), dp_diff_rows_f32(&twin));
 }
 
 TEST(CApi, BadArgumentsAreReportedNotFollowed) {
@@ -207,6 +210,39 @@ TEST(CApi, BlockUpdateEqualsSampleBySample) {
             DP_STATUS_NON_FINITE_INPUT);
   for (std::size_t k = 0; k < 1000; ++k) dp_diff_update_f32(&single, s.t1[k], s.t2[k]);
   EXPECT_EQ(scatter(block), scatter(single));
+}
+
+// Issue 12: a NaN that *replaces* a sample breaks the chain in dp_diff_update_f32 and in
+// dp_diff_update_block_f32 alike: the two differences touching it are dropped, no row spans
+// 2 Ts, and the result equals a break at that sample.
+TEST(CApi, NanReplacingASampleBreaksTheChain) {
+  const std::size_t n = 1000, replaced = 400;
+  Series s = realistic(n);
+  s.t2[replaced] = kNan;
+  dp_diff_instance_f32 single, block, broken;
+  const dp_diff_config_f32 c = config(DP_METHOD_GTLS);
+  ASSERT_EQ(dp_diff_init_f32(&single, &c), DP_STATUS_OK);
+  ASSERT_EQ(dp_diff_init_f32(&block, &c), DP_STATUS_OK);
+  ASSERT_EQ(dp_diff_init_f32(&broken, &c), DP_STATUS_OK);
+  for (std::size_t k = 0; k < n; ++k) {
+    const dp_status status = dp_diff_update_f32(&single, s.t1[k], s.t2[k]);
+    EXPECT_EQ(status, k == replaced ? DP_STATUS_NON_FINITE_INPUT : DP_STATUS_OK) << k;
+    if (k == replaced) {
+      dp_diff_break_chain_f32(&broken);
+    } else {
+      dp_diff_update_f32(&broken, s.t1[k], s.t2[k]);
+    }
+  }
+  EXPECT_EQ(dp_diff_update_block_f32(&block, s.t1.data(), s.t2.data(), static_cast<uint32_t>(n)),
+            DP_STATUS_NON_FINITE_INPUT);
+  // Rows 1..n-1 less the two that touch the replaced sample.
+  EXPECT_EQ(dp_diff_rows_f32(&single), float(n - 3));
+  EXPECT_EQ(dp_diff_rows_f32(&block), float(n - 3));
+  EXPECT_EQ(scatter(single), scatter(broken));
+  EXPECT_EQ(scatter(block), scatter(broken));
+  dp_diff_result_f32 a, b;
+  EXPECT_EQ(dp_diff_solve_f32(&single, &a), dp_diff_solve_f32(&broken, &b));
+  EXPECT_TRUE(same_bits(a.tau1, b.tau1) && same_bits(a.tau2, b.tau2));
 }
 
 TEST(CApi, BreakChainStartsANewChainAndKeepsTheData) {
