@@ -9,12 +9,8 @@ import numpy as np
 import pytest
 
 from dualprobe import simulate as sim
-from dualprobe.estimation import (
-    PairEstimate,
-    characterise_pair,
-    compare_methods,
-    discretisation_noise_std,
-)
+from dualprobe.estimation import PairEstimate, characterise_pair, discretisation_noise_std
+from dualprobe.estimation.compare import compare_methods
 from dualprobe.models import noise
 
 PT1 = sim.SensorModel((12.48,))

@@ -3,12 +3,12 @@
 :func:`characterise_pair` (:mod:`~dualprobe.estimation.pair`) returns a :class:`PairEstimate`
 from the SVF cross-relation estimator (:mod:`~dualprobe.estimation.svf`, the default) or the
 paper's difference method (:mod:`~dualprobe.estimation.difference`);
-:func:`compare_methods` sets them side by side on simulated data.
+:func:`dualprobe.estimation.compare.compare_methods` sets them side by side on simulated
+data (not imported here: it needs the simulator).
 """
 
 from __future__ import annotations
 
-from dualprobe.estimation.compare import compare_methods
 from dualprobe.estimation.pair import METHODS, characterise_pair
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.svf import GAP_THRESHOLD, discretisation_noise_std
@@ -18,6 +18,5 @@ __all__ = [
     "METHODS",
     "PairEstimate",
     "characterise_pair",
-    "compare_methods",
     "discretisation_noise_std",
 ]

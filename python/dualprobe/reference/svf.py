@@ -92,7 +92,7 @@ tau1 spread, 10 Hz Pt-100, +/-5 K, 0.1 K, 1200 s: tf 0.5 s 3.5 %, 1 s 1.1 %, 2-8
 150 K steps), spread of the 0.17 s pole: tf 0.1 s 19 %, 0.3 s 4.4 %, 1 s 2.2 %, 3 s 1.7 %,
 10 s 4.9 %.
 
-Against the plain difference GTLS (``dualprobe.estimation.compare_methods``, first-order
+Against the plain difference GTLS (``dualprobe.estimation.compare.compare_methods``, first-order
 Pt-100 pair, +/-5 K steps, 1200 s, 5 records; median / max |tau1 error|, failed runs):
 1 Hz 0.1 K: 100 % (2 failed) vs 1.2 / 2.7 %; 10 Hz 0.1 K: all 5 failed vs 0.10 / 0.76 %;
 100 Hz 0.01 K: 96 % / 920 % vs 0.015 / 0.045 %.
