@@ -3,7 +3,6 @@ figures, ``report.md`` and the JSON document."""
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import asdict
@@ -13,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from dualprobe import simulate as sim
-from dualprobe.report.json import jsonable
+from dualprobe.report.json import jsonable, write_json
 from dualprobe.studies.beyond import (
     NOISE_STD,
     STUDIES,
@@ -172,7 +171,7 @@ def run_paper(
     (out / "report.md").write_text(report, encoding="utf-8")
     json_target.parent.mkdir(parents=True, exist_ok=True)
     clean = jsonable(data)
-    json_target.write_text(json.dumps(clean, indent=2, allow_nan=False) + "\n", encoding="utf-8")
+    write_json(clean, json_target)
     return clean
 
 
