@@ -12,6 +12,7 @@ from dualprobe.cli.common import (
     add_time_arguments,
     check_writable,
     handle_errors,
+    print_notes,
 )
 from dualprobe.workflows.characterise import (
     METHODS,
@@ -46,8 +47,10 @@ def register(subparsers: Any) -> None:
         "(header row; a time column and one column per sensor) and reconstruct the gas "
         "temperature. The defaults need no knowledge of the noise level.",
     )
-    parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
-    add_time_arguments(parser)
+    parser.add_argument(
+        "data", metavar="DATA", help="recording: CSV (header row), Parquet or MDF4 (.mf4)"
+    )
+    add_time_arguments(parser, unit=True)
     parser.add_argument("--sensor1", default="T_m1", metavar="COL", help="faster sensor (T_m1)")
     parser.add_argument("--sensor2", default="T_m2", metavar="COL", help="slower sensor (T_m2)")
     parser.add_argument(
@@ -114,7 +117,9 @@ def run(args: argparse.Namespace) -> int:
         noise_std=args.noise_std,
         reference=args.reference,
         reconstruction=args.reconstruction if need_reconstruction else None,
+        time_unit=args.time_unit,
     )
+    print_notes(result.notes)
     if args.json is not None:
         write_json(result, args.json)
     if args.output is not None:

@@ -20,7 +20,7 @@ from dualprobe.identify.result import (
     Initial,
     TfFit,
 )
-from dualprobe.io.csv import IRREGULAR_TIME_TOLERANCE
+from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE
 from dualprobe.models.noise import ORDER_IDENTIFY, estimate_noise_std
 
 __all__ = ["fit_transfer_function"]
