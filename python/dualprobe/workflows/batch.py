@@ -140,7 +140,11 @@ class BatchResult:
             f"{len(failed)} failed; {self.wall_time:.1f} s in all, "
             f"{sum(times) / max(len(times), 1):.2f} s per recording in its worker",
         ]
-        lines += [f"  {r.status}: {r.file}: {r.error}" for r in failed[:10]]
+        lines += [
+            f"  {r.status}: " + (r.error if (r.error or "").startswith(r.file)
+                                 else f"{r.file}: {r.error}")
+            for r in failed[:10]
+        ]
         if len(failed) > 10:
             lines.append(f"  ... and {len(failed) - 10} more (see {self.summary_path})")
         for sensor in self.pooled.get("sensors", []):
@@ -228,6 +232,9 @@ def run_batch(
     ``workers``: local processes (default: the CPU count; 1 runs in this process); ``scheduler``:
     a Dask distributed scheduler address (then ``workers`` is the cluster's business);
     ``progress``: a progress bar on stderr (default: when stderr is a terminal).
+
+    Local workers are spawned (they import the package afresh), so a script calling this must
+    do so under ``if __name__ == "__main__":`` (the ``dualprobe`` command does).
     """
     from tqdm import tqdm
 
