@@ -243,3 +243,12 @@ def test_mdf_errors(tmp_path: Path) -> None:
     (tmp_path / "text.mf4").write_text("t,T_m1\n0,1\n")
     assert "not an MDF4 file" in error_of(tmp_path / "text.mf4", ["T_m1"])
     assert "conflicts with the format's unit (s)" in error_of(path, ["T_m1"], time_unit="ms")
+
+
+def test_format_from_content_then_extension(tmp_path: Path) -> None:
+    (tmp_path / "unfinished.dat").write_bytes(b"UnFinMF 4.10    " + bytes(48))
+    assert detect_format(tmp_path / "unfinished.dat") == "mdf4"
+    (tmp_path / "plain.txt").write_text("t,x\n0,1\n")
+    assert detect_format(tmp_path / "plain.txt") == "csv"
+    assert detect_format(tmp_path / "absent.mf4") == "csv"  # then "no such file" from the reader
+    assert "no such file" in error_of(tmp_path / "absent.mf4", ["x"])

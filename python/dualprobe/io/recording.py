@@ -86,7 +86,10 @@ def detect_format(path: str | os.PathLike[str]) -> str:
                 head = handle.read(8)
         except OSError as exc:
             raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if head.startswith(MDF_MAGIC[:3]) and head[3:8].strip() == b"":
+    # "MDF     ", or "UnFinMF " for a file the logger did not finalise (asammdf reads both)
+    if (head.startswith(MDF_MAGIC[:3]) and head[3:8].strip() == b"") or head.startswith(
+        b"UnFinMF"
+    ):
         return "mdf4"
     if head.startswith(PARQUET_MAGIC):
         return "parquet"
