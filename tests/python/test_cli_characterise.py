@@ -119,7 +119,7 @@ def test_constant_signal_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[s
 @pytest.mark.parametrize(
     ("argv", "fragment"),
     [
-        (["characterise"], "DATA.csv"),
+        (["characterise"], "DATA"),
         (["characterise", "x.csv", "--method", "magic"], "--method"),
         (["characterise", "x.csv", "--order", "3"], "--order"),
         (["characterise", "x.csv", "--noise-std", "-1"], "--noise-std"),

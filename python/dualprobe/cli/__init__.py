@@ -13,7 +13,7 @@ from dualprobe.cli.common import ArgumentParser, UsageError, exit_status, handle
 __all__ = ["COMMANDS", "build_parser", "main"]
 
 # Fixed order of the subcommands in --help; each module exposes `register(subparsers)`.
-COMMANDS = ("characterise", "identify", "paper", "diagnose", "demo", "bench")
+COMMANDS = ("characterise", "identify", "batch", "paper", "diagnose", "demo", "bench")
 
 
 def build_parser() -> ArgumentParser:

@@ -12,7 +12,9 @@ from dualprobe.cli.common import (
     add_time_arguments,
     check_writable,
     handle_errors,
+    print_notes,
 )
+from dualprobe.report.dcm import DEFAULT_NAMES, write_dcm
 from dualprobe.workflows.characterise import (
     METHODS,
     RECONSTRUCTION_MODES,
@@ -37,6 +39,13 @@ def _noise_std(text: str) -> tuple[float, ...]:
     return values
 
 
+def _dcm_names(text: str) -> tuple[str, str]:
+    names = tuple(part.strip() for part in text.split(","))
+    if len(names) != 2 or not all(names):
+        raise argparse.ArgumentTypeError(f"expected NAME1,NAME2, got {text!r}")
+    return names[0], names[1]
+
+
 def register(subparsers: Any) -> None:
     parser = subparsers.add_parser(
         "characterise",
@@ -46,8 +55,10 @@ def register(subparsers: Any) -> None:
         "(header row; a time column and one column per sensor) and reconstruct the gas "
         "temperature. The defaults need no knowledge of the noise level.",
     )
-    parser.add_argument("data", metavar="DATA.csv", help="CSV file with a header row")
-    add_time_arguments(parser)
+    parser.add_argument(
+        "data", metavar="DATA", help="recording: CSV (header row), Parquet or MDF4 (.mf4)"
+    )
+    add_time_arguments(parser, unit=True)
     parser.add_argument("--sensor1", default="T_m1", metavar="COL", help="faster sensor (T_m1)")
     parser.add_argument("--sensor2", default="T_m2", metavar="COL", help="slower sensor (T_m2)")
     parser.add_argument(
@@ -90,6 +101,27 @@ def register(subparsers: Any) -> None:
         metavar="PATH",
         help="write the reconstruction as CSV t,T_g_hat (one row per input row)",
     )
+    parser.add_argument(
+        "--dcm",
+        default=None,
+        metavar="PATH",
+        help="write the time constants as a DCM file (KONSERVIERUNG_FORMAT 2.0, for INCA / "
+        "CANape): a KENNLINIE of tau over flow per sensor when a flow model exists, else a "
+        "FESTWERT",
+    )
+    parser.add_argument(
+        "--dcm-names",
+        type=_dcm_names,
+        default=DEFAULT_NAMES,
+        metavar="NAME1,NAME2",
+        help=f"DCM parameter names of the two sensors (default {','.join(DEFAULT_NAMES)})",
+    )
+    parser.add_argument(
+        "--dcm-flow-unit",
+        default=None,
+        metavar="UNIT",
+        help="unit of the flow axis in the DCM file (default: the flow model's, else '-')",
+    )
     parser.set_defaults(run=run)
 
 
@@ -98,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sample_interval is None and not args.time:
         raise UsageError("characterise: --time '' needs --sample-interval TS")
     # Refuse unwritable output paths before the (possibly long) computation.
-    for option, target in (("--json", args.json), ("--output", args.output)):
+    for option, target in (("--json", args.json), ("--output", args.output), ("--dcm", args.dcm)):
         if target is not None:
             check_writable(option, Path(target))
     need_reconstruction = args.output is not None or args.reference is not None
@@ -114,10 +146,20 @@ def run(args: argparse.Namespace) -> int:
         noise_std=args.noise_std,
         reference=args.reference,
         reconstruction=args.reconstruction if need_reconstruction else None,
+        time_unit=args.time_unit,
     )
+    print_notes(result.notes)
     if args.json is not None:
         write_json(result, args.json)
     if args.output is not None:
         write_reconstruction(result, args.output)
+    if args.dcm is not None:
+        write_dcm(
+            result.to_json_dict(),
+            args.dcm,
+            names=args.dcm_names,
+            flow_unit=args.dcm_flow_unit,
+            source=str(args.data),
+        )
     print(result.summary())
     return 0

@@ -6,11 +6,11 @@ import argparse
 import functools
 import math
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from dualprobe.io import EstimationError, InputError
+from dualprobe.io import TIME_UNITS, EstimationError, InputError
 
 __all__ = [
     "EXIT_ESTIMATION",
@@ -18,8 +18,10 @@ __all__ = [
     "EXIT_INTERNAL",
     "ArgumentParser",
     "UsageError",
+    "add_time_arguments",
     "handle_errors",
     "print_error",
+    "print_notes",
 ]
 
 EXIT_INTERNAL = 1
@@ -104,14 +106,15 @@ def check_writable(option: str, path: Path) -> None:
         raise UsageError(f"{option} {path}: directory {path.parent} does not exist")
 
 
-def add_time_arguments(parser: Any) -> None:
-    """The --time / --sample-interval pair every CSV command shares."""
+def add_time_arguments(parser: Any, *, unit: bool = False) -> None:
+    """The --time / --sample-interval pair every command reading a recording shares, and
+    with ``unit`` the --time-unit option."""
     parser.add_argument(
         "--time",
         default="t",
         metavar="COL",
-        help="time column in seconds (default: t); '' if the file has none, then give "
-        "--sample-interval",
+        help="time column (default: t; 'Time (ms)' is found as Time and read in ms); '' if "
+        "the file has none, then give --sample-interval. MDF4: each group's master channel",
     )
     parser.add_argument(
         "--sample-interval",
@@ -120,3 +123,17 @@ def add_time_arguments(parser: Any) -> None:
         metavar="TS",
         help="sample interval in seconds when there is no time column",
     )
+    if unit:
+        parser.add_argument(
+            "--time-unit",
+            choices=tuple(TIME_UNITS),
+            default=None,
+            help="unit of the time column (default: the unit in its header, e.g. "
+            "'Time (ms)', else s)",
+        )
+
+
+def print_notes(notes: Sequence[str]) -> None:
+    """The loader's one-line notes (units, jitter, gaps, interpolation) on stdout."""
+    for note in notes:
+        print(f"note: {_single_line(note)}")

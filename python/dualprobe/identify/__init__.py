@@ -5,7 +5,10 @@ What MATLAB's ``tfest`` / ``compare`` give, for the models of the paper's Tables
 * order 1: ``K / (1 + tau s)``
 * order 2: ``K / ((1 + tau_a s)(1 + tau_b s))`` (``tau_a >= tau_b``)
 
-each optionally with a dead time ``exp(-theta s)``.
+each optionally with a dead time ``exp(-theta s)`` and an output offset.
+
+Plunge tests (no reference column: an ideal step at an unknown instant) are fitted by
+:func:`fit_step` (:mod:`~dualprobe.identify.step`), which returns a :class:`StepFit`.
 
 :func:`fit_transfer_function` (:mod:`~dualprobe.identify.fit`) returns a :class:`TfFit`
 (:mod:`~dualprobe.identify.result`); :func:`simulate_fit` and :func:`simulate_model`
@@ -32,13 +35,25 @@ from __future__ import annotations
 
 from dualprobe.identify.fit import fit_transfer_function
 from dualprobe.identify.model import simulate_fit, simulate_model
-from dualprobe.identify.result import HOLDS, INITIAL_CONDITIONS, IdentificationError, TfFit
+from dualprobe.identify.result import (
+    GAIN_RANGE,
+    HOLDS,
+    INITIAL_CONDITIONS,
+    IdentificationError,
+    TfFit,
+    check_gain,
+)
+from dualprobe.identify.step import StepFit, fit_step
 
 __all__ = [
+    "GAIN_RANGE",
     "HOLDS",
     "INITIAL_CONDITIONS",
     "IdentificationError",
+    "StepFit",
     "TfFit",
+    "check_gain",
+    "fit_step",
     "fit_transfer_function",
     "simulate_fit",
     "simulate_model",

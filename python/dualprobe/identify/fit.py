@@ -20,7 +20,7 @@ from dualprobe.identify.result import (
     Initial,
     TfFit,
 )
-from dualprobe.io.csv import IRREGULAR_TIME_TOLERANCE
+from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE
 from dualprobe.models.noise import ORDER_IDENTIFY, estimate_noise_std
 
 __all__ = ["fit_transfer_function"]
@@ -47,6 +47,19 @@ def _sample_interval(t_or_ts: Any, size: int) -> float:
     return float((t[-1] - t[0]) / (t.size - 1))
 
 
+def _check_excitation(u: np.ndarray) -> None:
+    """Refuse an input whose range is within what its noise alone spans (the expected range of
+    N Gaussian samples is about 2 sqrt(2 ln N) noise std; 4 more is the margin)."""
+    sigma = estimate_noise_std(u, ORDER_IDENTIFY)
+    spread = float(np.ptp(u))
+    needed = (2.0 * math.sqrt(2.0 * math.log(u.size)) + 4.0) * sigma
+    if sigma > 0 and spread < needed:
+        raise IdentificationError(
+            f"no excitation: the input spans {spread:.3g}, within what its noise "
+            f"({sigma:.3g} std) spans alone (need > {needed:.3g}); record a change of the input"
+        )
+
+
 @dataclass
 class _Problem:
     u: np.ndarray
@@ -56,6 +69,7 @@ class _Problem:
     delay_estimated: bool
     hold: str
     initial: str
+    offset: bool = False
     evaluations: int = 0
 
     def linear_design(self, taus: Sequence[float], delay: float) -> np.ndarray:
@@ -64,8 +78,12 @@ class _Problem:
         forced, free = responses(taus, delay, self.ts, self.hold, self.u)
         if self.initial == "steady":
             # At rest with u[0]: x0 = K u[0] for every state.
-            return (forced + free.sum(axis=1) * self.u[0])[:, None]
-        return np.column_stack([forced, free])
+            columns = [(forced + free.sum(axis=1) * self.u[0])[:, None]]
+        else:
+            columns = [forced[:, None], free]
+        if self.offset:
+            columns.append(np.ones((forced.size, 1)))
+        return np.hstack(columns)
 
     def projected(self, nonlinear: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Variable projection: residual and linear parameters for given log-taus (, delay)."""
@@ -77,7 +95,7 @@ class _Problem:
 
 
 def _unpack(problem: _Problem, theta: np.ndarray) -> tuple[float, np.ndarray, float, np.ndarray]:
-    """theta = [K, tau_1..tau_n, (delay), (x0_1..x0_n)] in physical units."""
+    """theta = [K, tau_1..tau_n, (delay), (x0_1..x0_n), (offset)] in physical units."""
     n = problem.order
     gain = float(theta[0])
     taus = np.asarray(theta[1 : 1 + n])
@@ -93,11 +111,16 @@ def _unpack(problem: _Problem, theta: np.ndarray) -> tuple[float, np.ndarray, fl
     return gain, taus, delay, x0
 
 
+def _offset(problem: _Problem, theta: np.ndarray) -> float:
+    """The additive output offset (the last parameter when estimated)."""
+    return float(theta[-1]) if problem.offset else 0.0
+
+
 def _model_output(problem: _Problem, theta: np.ndarray) -> np.ndarray:
     gain, taus, delay, x0 = _unpack(problem, theta)
     problem.evaluations += 1
     forced, free = responses(taus, delay, problem.ts, problem.hold, problem.u)
-    return gain * forced + free @ x0
+    return gain * forced + free @ x0 + _offset(problem, theta)
 
 
 def _initial_candidates(problem: _Problem, duration: float) -> list[np.ndarray]:
@@ -184,7 +207,9 @@ def _full_parameters(problem: _Problem, nonlinear: np.ndarray) -> np.ndarray:
     if problem.delay_estimated:
         parts.append(np.asarray(nonlinear[problem.order :], dtype=float))
     if problem.initial == "estimate":
-        parts.append(coef[1:])
+        parts.append(coef[1 : 1 + problem.order])
+    if problem.offset:
+        parts.append(coef[-1:])
     return np.concatenate(parts)
 
 
@@ -198,9 +223,11 @@ def _parameter_scale(problem: _Problem, theta: np.ndarray) -> np.ndarray:
     if problem.delay_estimated:
         scale[pos] = max(scale[pos], problem.ts)
         pos += 1
+    level = max(1.0, float(np.std(problem.y)))
     if problem.initial == "estimate":
-        level = max(1.0, float(np.std(problem.y)))
-        scale[pos:] = np.maximum(scale[pos:], level)
+        scale[pos : pos + n] = np.maximum(scale[pos : pos + n], level)
+    if problem.offset:
+        scale[-1] = max(scale[-1], level)
     return scale
 
 
@@ -256,6 +283,7 @@ def fit_transfer_function(
     initial: Initial = "estimate",
     n_starts: int = 4,
     input_noise_std: float | Literal["auto"] | None = "auto",
+    offset: bool = False,
 ) -> TfFit:
     """Fit ``K exp(-theta s) / prod(1 + tau_i s)`` from input ``u`` to output ``y``.
 
@@ -283,13 +311,17 @@ def fit_transfer_function(
         (:func:`dualprobe.models.noise.estimate_noise_std`), which is
         right for a smooth measured signal and conservative for an input that is rough at the
         sample scale; None or 0 treats the input as exact (what tfest does).
+    offset:
+        Also estimate an additive output offset ``c``: ``y = K G(s) u + c`` (a sensor reading
+        off by a constant, or input and output on different zeros).
 
     Raises
     ------
     ValueError
         Bad arguments or signals (with what and where).
     IdentificationError
-        The input does not excite the model (constant input or output).
+        The input does not excite the model (constant input or output, or an input whose range
+        is within what its noise alone spans: ``2 sqrt(2 ln N) + 4`` noise std).
     """
     if order not in (1, 2):
         raise ValueError(f"order must be 1 or 2, got {order!r}")
@@ -316,7 +348,7 @@ def fit_transfer_function(
     if u.size != y.size:
         raise ValueError(f"u and y differ in length ({u.size} vs {y.size})")
     ts = _sample_interval(t_or_ts, u.size)
-    n_params = 1 + order + int(delay) + (order if initial == "estimate" else 0)
+    n_params = 1 + order + int(delay) + (order if initial == "estimate" else 0) + int(offset)
     min_samples = max(10, 3 * n_params)
     if u.size < min_samples:
         raise ValueError(f"too few samples ({u.size}; need at least {min_samples})")
@@ -325,8 +357,9 @@ def fit_transfer_function(
         raise IdentificationError("the input is constant: it does not excite the model")
     if float(np.ptp(y)) == 0.0:
         raise IdentificationError("the output is constant: nothing to fit")
+    _check_excitation(u)
 
-    problem = _Problem(u, y, ts, order, delay, hold, initial)
+    problem = _Problem(u, y, ts, order, delay, hold, initial, offset)
     duration = ts * (u.size - 1)
     nonlinear = _search(problem, duration, n_starts)
     theta = _full_parameters(problem, nonlinear)
@@ -381,6 +414,8 @@ def fit_transfer_function(
         names.append("delay")
     if initial == "estimate":
         names += [f"x0_{i + 1}" for i in range(order)]
+    if offset:
+        names.append("offset")
     gain, taus, delay_value, x0 = _unpack(problem, theta)
     pos = 1 + order + int(delay)
     x0_std = (
@@ -429,4 +464,7 @@ def fit_transfer_function(
         parameter_names=tuple(names),
         covariance=tuple(tuple(float(v) for v in row) for row in cov),
         n_function_evaluations=problem.evaluations,
+        offset=_offset(problem, theta),
+        offset_std=float(std[-1]) if offset else 0.0,
+        offset_estimated=offset,
     )

@@ -211,7 +211,7 @@ def simulate_fit(
             raise ValueError(f"simulate_fit: unknown initial_state {initial_state!r}")
     else:
         x0 = initial_state
-    return simulate_model(
+    output = simulate_model(
         fit.gain,
         fit.taus,
         u,
@@ -220,6 +220,7 @@ def simulate_fit(
         initial_state=x0,
         hold=fit.hold,  # type: ignore[arg-type]
     )
+    return output + fit.offset
 
 
 def as_signal(x: Any, name: str) -> np.ndarray:

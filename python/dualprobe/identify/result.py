@@ -8,12 +8,14 @@ from typing import Any, Literal
 from dualprobe.io import EstimationError
 
 __all__ = [
+    "GAIN_RANGE",
     "HOLDS",
     "INITIAL_CONDITIONS",
     "Hold",
     "IdentificationError",
     "Initial",
     "TfFit",
+    "check_gain",
 ]
 
 
@@ -61,6 +63,9 @@ class TfFit:
     parameter_names: tuple[str, ...]
     covariance: tuple[tuple[float, ...], ...]
     n_function_evaluations: int
+    offset: float = 0.0
+    offset_std: float = 0.0
+    offset_estimated: bool = False
 
     @property
     def model(self) -> str:
@@ -69,6 +74,8 @@ class TfFit:
         text = f"{self.gain:.4g}/{poles}" if len(self.taus) == 1 else f"{self.gain:.4g}/({poles})"
         if self.delay_estimated:
             text += f"*exp(-{self.delay:.4g}s)"
+        if self.offset_estimated:
+            text += f" {self.offset:+.4g}"
         return text
 
     def summary(self) -> str:
@@ -80,6 +87,8 @@ class TfFit:
             lines.append(f"  {name:<11} = {value:.6g} +/- {std:.2g} s")
         if self.delay_estimated:
             lines.append(f"  delay       = {self.delay:.6g} +/- {self.delay_std:.2g} s")
+        if self.offset_estimated:
+            lines.append(f"  offset      = {self.offset:.6g} +/- {self.offset_std:.2g}")
         lines.append(
             f"fit {self.fit_percent:.2f} % (NRMSE)   RMSE {self.rmse:.4g}   "
             f"AICc {self.aicc:.6g}   BIC {self.bic:.6g}"
@@ -122,4 +131,30 @@ class TfFit:
             "initial": self.initial,
             "parameter_names": list(self.parameter_names),
             "covariance": [list(row) for row in self.covariance],
+            "offset": self.offset,
+            "offset_std": self.offset_std,
+            "offset_estimated": self.offset_estimated,
         }
+
+
+# Static gains a temperature sensor against a temperature reference can have: a thermocouple or
+# RTD reads its own temperature within a few per cent; far outside this the two columns are not
+# the same quantity (degC against V, K against degC through a scaled channel, ...).
+GAIN_RANGE = (0.5, 2.0)
+
+
+def check_gain(fit: TfFit, bounds: tuple[float, float] = GAIN_RANGE) -> None:
+    """Refuse (IdentificationError, exit 3) a static gain outside ``bounds``.
+
+    A gain far from 1 between two temperatures means the columns are in different units or
+    scales. The time constants of such a fit are not trustworthy either: an offset between the
+    columns that the model cannot take (without ``offset``) is absorbed into them.
+    """
+    low, high = bounds
+    if not low <= fit.gain <= high:
+        raise IdentificationError(
+            f"identified static gain K = {fit.gain:.4g} is implausible for a temperature sensor "
+            f"(expected {low:g}-{high:g}): input and output in different units (e.g. degC "
+            "against V)? Convert them, add --offset for a constant difference, or pass "
+            "--any-gain to accept it"
+        )

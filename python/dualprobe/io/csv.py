@@ -1,8 +1,17 @@
-"""CSV loading and validation for recordings.
+"""CSV recordings: a fast columnar reader (``pyarrow.csv``) with the exact messages of a
+line-by-line reader for anything it refuses.
 
 Every problem with an input file is reported as an :class:`InputError` whose message is a single
 line naming the file and, where it applies, the line of the file (1-based, header is line 1, as a
-text editor shows it) and the column.
+text editor shows it) and the column. The delimiter is a comma, or a semicolon / tab when the
+header line has none; blank lines and whitespace around cells are ignored; a units row under
+the header (``s,degC,degC``) is refused (put the unit in the header: ``Time (ms)``).
+
+Fast path: the header is read here, the body by ``pyarrow.csv`` straight into float64 columns
+(no NaN-by-default strings, no empty cells); anything it refuses (an empty cell, text, a ragged
+row, a whitespace-only line) sends the file through the line-by-line reader, which names the
+line and column. File line numbers for later messages (time, non-finite values) are counted
+only when a message needs them.
 """
 
 from __future__ import annotations
@@ -11,23 +20,24 @@ import csv
 import io as _io
 import math
 import os
-from collections.abc import Sequence
+import re
 from pathlib import Path
 
 import numpy as np
 
 from dualprobe.io.errors import InputError
+from dualprobe.io.table import Table, resolve_columns
+from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE, stamp_resolution
 
 __all__ = [
-    "load_columns",
+    "IRREGULAR_TIME_TOLERANCE",
+    "read_csv",
     "read_csv_table",
     "write_columns",
 ]
 
-# Relative deviation of any sample interval from the median interval above which the time base
-# is called irregular: well above float64 rounding of typical time stamps (~1e-12 relative), far
-# below any real sampling glitch.
-IRREGULAR_TIME_TOLERANCE = 1e-6
+_BOM = b"\xef\xbb\xbf"
+_NON_BLANK = re.compile(rb"\S")
 
 
 def _one_line(text: str, limit: int = 60) -> str:
@@ -38,7 +48,7 @@ def _one_line(text: str, limit: int = 60) -> str:
     return repr(text)
 
 
-def _read_text(path: Path) -> str:
+def _read_bytes(path: Path) -> bytes:
     if not path.exists():
         raise InputError(f"{path}: no such file")
     if path.is_dir():
@@ -47,43 +57,56 @@ def _read_text(path: Path) -> str:
         raw = path.read_bytes()
     except OSError as exc:
         raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
-    if not raw.strip():
+    if _NON_BLANK.search(raw) is None:
         raise InputError(f"{path}: file is empty")
     offset = raw.find(b"\x00")
     if offset >= 0:
         raise InputError(f"{path}: binary data (NUL byte at offset {offset}), not a CSV text file")
     try:
-        text = raw.decode("utf-8-sig")
+        raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         raise InputError(
             f"{path}: not UTF-8 text (undecodable byte at offset {exc.start}), not a CSV file"
         ) from None
-    return text
+    return raw
 
 
-def _delimiter(text: str) -> str:
+def _delimiter(header_line: str) -> str:
     """Comma, unless the header line has none but has semicolons or tabs (locale exports)."""
-    header = next((line for line in text.splitlines() if line.strip()), "")
-    if "," in header:
+    if "," in header_line:
         return ","
     for candidate in (";", "\t"):
-        if candidate in header:
+        if candidate in header_line:
             return candidate
     return ","
 
 
+def _check_header(path: Path, header: list[str], line: int) -> None:
+    if any(not name for name in header):
+        position = header.index("") + 1
+        raise InputError(
+            f"{path}: line {line}: header has an empty column name at position {position}"
+        )
+    seen: set[str] = set()
+    for name in header:
+        if name in seen:
+            raise InputError(f"{path}: line {line}: header names column {name!r} twice")
+        seen.add(name)
+
+
 def read_csv_table(path: str | os.PathLike[str]) -> tuple[list[str], list[list[str]], list[int]]:
-    """Read a CSV file with a header row.
+    """Read a CSV file with a header row, line by line.
 
     Returns (header, data rows of stripped cells, file line number of each data row). Blank
     lines are skipped; whitespace around cells is ignored; the delimiter is a comma, or a
     semicolon / tab when the header has no comma. Raises :class:`InputError`.
     """
     path = Path(path)
-    text = _read_text(path)
+    text = _read_bytes(path).decode("utf-8-sig")
+    header_line = next((line for line in text.splitlines() if line.strip()), "")
     rows: list[list[str]] = []
     lines: list[int] = []
-    reader = csv.reader(_io.StringIO(text, newline=""), delimiter=_delimiter(text))
+    reader = csv.reader(_io.StringIO(text, newline=""), delimiter=_delimiter(header_line))
     try:
         for row in reader:
             cells = [cell.strip() for cell in row]
@@ -95,162 +118,161 @@ def read_csv_table(path: str | os.PathLike[str]) -> tuple[list[str], list[list[s
     if not rows:
         raise InputError(f"{path}: file is empty")
     header = rows[0]
-    if any(not name for name in header):
-        position = header.index("") + 1
-        raise InputError(
-            f"{path}: line {lines[0]}: header has an empty column name at position {position}"
-        )
-    seen: set[str] = set()
-    for name in header:
-        if name in seen:
-            raise InputError(f"{path}: line {lines[0]}: header names column {name!r} twice")
-        seen.add(name)
+    _check_header(path, header, lines[0])
     if len(rows) == 1:
         raise InputError(f"{path}: header only, no data rows (header: {', '.join(header)})")
     return header, rows[1:], lines[1:]
 
 
-def _check_widths(path: Path, data: list[list[str]], lines: list[int], width: int) -> None:
-    for row, line in zip(data, lines, strict=True):
-        if len(row) != width:
-            raise InputError(f"{path}: line {line}: {len(row)} fields, header has {width}")
-
-
-def column_cells(data: list[list[str]], index: int) -> list[str]:
-    return [row[index] for row in data]
+def _is_number(cell: str) -> bool:
+    try:
+        float(cell)
+    except ValueError:
+        return False
+    return True
 
 
 def _parse_column(
     path: Path, name: str, index: int, data: list[list[str]], lines: list[int]
 ) -> np.ndarray:
-    cells = column_cells(data, index)
+    cells = [row[index] for row in data]
     try:
-        values = np.array(cells, dtype=np.float64)
+        return np.array(cells, dtype=np.float64)
     except ValueError:
-        # Slow path only to say exactly which cell is wrong.
-        for cell, line in zip(cells, lines, strict=True):
-            where = f"{path}: line {line}, column {name!r}"
-            if cell == "":
-                raise InputError(f"{where}: empty value") from None
-            try:
-                float(cell)
-            except ValueError:
-                raise InputError(f"{where}: not a number: {_one_line(cell)}") from None
-        raise  # unreachable: numpy and float() accept the same strings
-    bad = np.flatnonzero(~np.isfinite(values))
-    if bad.size:
-        first = int(bad[0])
-        raise InputError(
-            f"{path}: line {lines[first]}, column {name!r}: non-finite value "
-            f"{_one_line(cells[first])}"
-        )
-    return values
+        pass
+    # Slow path only to say exactly which cell is wrong.
+    for position, (cell, line) in enumerate(zip(cells, lines, strict=True)):
+        where = f"{path}: line {line}, column {name!r}"
+        if cell == "":
+            raise InputError(f"{where}: empty value") from None
+        if not _is_number(cell):
+            row = data[position]
+            if position == 0 and not any(_is_number(c) for c in row):
+                raise InputError(
+                    f"{path}: line {line}: a units row under the header "
+                    f"({', '.join(row)}); remove it and put units in the header, e.g. "
+                    "'Time (ms)'"
+                )
+            raise InputError(f"{where}: not a number: {_one_line(cell)}") from None
+    raise AssertionError("unreachable: numpy and float() accept the same strings")
 
 
-def _printed_resolution(cells: list[str]) -> float:
-    """Resolution the time stamps were printed with: the finest last-digit unit among them.
-
-    E.g. 1e-4 for stamps written with "%.4f". Writers that strip trailing zeros make some
-    stamps look coarser ("0.5"), so the finest unit is the one that tells the resolution.
-    """
-    finest = math.inf
-    for cell in cells:
-        mantissa, _, exponent = cell.lower().partition("e")
-        decimals = len(mantissa.partition(".")[2])
-        try:
-            shift = int(exponent) if exponent else 0
-        except ValueError:
-            continue
-        finest = min(finest, 10.0 ** (shift - decimals))
-    return finest if math.isfinite(finest) else 0.0
-
-
-def _check_time(path: Path, name: str, t: np.ndarray, cells: list[str], lines: list[int]) -> float:
-    dt = np.diff(t)
-    bad = np.flatnonzero(dt <= 0.0)
-    if bad.size:
-        later = int(bad[0]) + 1  # index of the later sample of the offending pair
-        raise InputError(
-            f"{path}: line {lines[later]}, column {name!r}: time not strictly increasing "
-            f"({t[later - 1]:.10g} then {t[later]:.10g})"
-        )
-    interval = float(np.median(dt))
-    # Allowed deviation: the relative tolerance, plus float64 resolution at the largest time
-    # stamp (absolute clocks such as Unix time), plus the resolution the stamps were printed with.
-    allowed = IRREGULAR_TIME_TOLERANCE * interval + 8.0 * np.spacing(np.max(np.abs(t)))
-    irregular = np.flatnonzero(np.abs(dt - interval) > allowed)
-    if irregular.size:
-        # Two stamps rounded to the printed resolution make an interval off by up to one unit,
-        # and the median interval is off by as much.
-        allowed = allowed + 2.0 * _printed_resolution(cells)
-        irregular = np.flatnonzero(np.abs(dt - interval) > allowed)
-    if irregular.size:
-        later = int(irregular[0]) + 1
-        raise InputError(
-            f"{path}: line {lines[later]}, column {name!r}: irregular time step "
-            f"{dt[later - 1]:.10g} (median interval {interval:.10g}); "
-            "resample to a uniform grid first"
-        )
-    # The mean over the whole record is the least-noisy estimate of the interval once it is
-    # known to be regular.
-    return float((t[-1] - t[0]) / (t.size - 1))
-
-
-def load_columns(
-    path: str | os.PathLike[str],
-    columns: Sequence[str],
-    *,
-    time: str | None = "t",
-    min_rows: int = 10,
-) -> tuple[np.ndarray | None, dict[str, np.ndarray], float | None]:
-    """Load numeric columns of a CSV file with a header row, validating everything.
-
-    Parameters
-    ----------
-    path:
-        CSV file with a header row.
-    columns:
-        Names of the data columns to return (finite float64 values required).
-    time:
-        Name of the time column (strictly increasing, uniform spacing within a relative
-        1e-6 of the median interval plus the resolution the stamps are printed with), or
-        ``None`` / ``""`` when the file has no time column.
-    min_rows:
-        Minimum number of data rows (at least 2 when there is a time column).
-
-    Returns
-    -------
-    (time array or None, {column: array}, sample interval or None)
-
-    Raises
-    ------
-    InputError
-        With a one-line message naming the file and, where relevant, row and column.
-    """
-    path = Path(path)
-    if not time:
-        time = None
+def _slow_columns(
+    path: Path, requested: list[str], time: str | None
+) -> tuple[list[str], dict[str, str], dict[str, np.ndarray], list[int]]:
     header, data, lines = read_csv_table(path)
-    wanted = ([time] if time is not None else []) + [c for c in columns if c != time]
-    missing = [name for name in wanted if name not in header]
-    if missing:
-        which = "columns" if len(missing) > 1 else "column"
-        raise InputError(
-            f"{path}: missing {which} {', '.join(repr(m) for m in missing)}; "
-            f"available: {', '.join(header)}"
+    names = resolve_columns(str(path), header, ([time] if time else []) + requested)
+    width = len(header)
+    for row, line in zip(data, lines, strict=True):
+        if len(row) != width:
+            raise InputError(f"{path}: line {line}: {len(row)} fields, header has {width}")
+    parsed = {
+        wanted: _parse_column(path, actual, header.index(actual), data, lines)
+        for wanted, actual in names.items()
+    }
+    return header, names, parsed, lines
+
+
+def _split_header(raw: bytes) -> tuple[str, int, int]:
+    """(header line text, its file line number, byte offset of the body)."""
+    position = len(_BOM) if raw.startswith(_BOM) else 0
+    line = 1
+    while True:
+        end = raw.find(b"\n", position)
+        stop = len(raw) if end < 0 else end
+        text = raw[position:stop].decode("utf-8").rstrip("\r")
+        if text.strip():
+            return text, line, (len(raw) if end < 0 else end + 1)
+        position = stop + 1
+        line += 1
+
+
+def _data_lines(raw: bytes, body: int, first_line: int) -> np.ndarray:
+    """File line numbers of the non-blank lines of the body (the fast path's rows)."""
+    lines = raw[body:].split(b"\n")
+    if lines and lines[-1] == b"":
+        lines.pop()
+    blank = np.fromiter((not line.strip() for line in lines), dtype=bool, count=len(lines))
+    return first_line + 1 + np.flatnonzero(~blank)
+
+
+def _fast_columns(
+    path: Path, raw: bytes, requested: list[str], time: str | None
+) -> tuple[dict[str, str], dict[str, np.ndarray], int, int] | None:
+    """The columns through pyarrow, or None when the line-by-line reader must decide."""
+    import pyarrow as pa
+    import pyarrow.csv as pacsv
+
+    header_text, header_line, body = _split_header(raw)
+    delimiter = _delimiter(header_text)
+    header = [cell.strip() for cell in next(csv.reader([header_text], delimiter=delimiter))]
+    _check_header(path, header, header_line)
+    if _NON_BLANK.search(raw, body) is None:
+        raise InputError(f"{path}: header only, no data rows (header: {', '.join(header)})")
+    names = resolve_columns(str(path), header, ([time] if time else []) + requested)
+    actual = list(dict.fromkeys(names.values()))
+    try:
+        table = pacsv.read_csv(
+            pa.py_buffer(memoryview(raw)[body:]),
+            read_options=pacsv.ReadOptions(column_names=header),
+            parse_options=pacsv.ParseOptions(delimiter=delimiter),
+            convert_options=pacsv.ConvertOptions(
+                column_types={name: pa.float64() for name in actual},
+                include_columns=actual,
+                null_values=[],
+                strings_can_be_null=False,
+                quoted_strings_can_be_null=False,
+            ),
         )
-    if time is not None:
-        min_rows = max(min_rows, 2)
-    if len(data) < min_rows:
-        raise InputError(f"{path}: too few data rows ({len(data)}; need at least {min_rows})")
-    _check_widths(path, data, lines, len(header))
-    parsed = {name: _parse_column(path, name, header.index(name), data, lines) for name in wanted}
-    t: np.ndarray | None = None
-    interval: float | None = None
-    if time is not None:
-        t = parsed[time]
-        interval = _check_time(path, time, t, column_cells(data, header.index(time)), lines)
-    return t, {name: parsed[name] for name in columns}, interval
+    except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
+        return None
+    if table.num_rows == 0:
+        return None
+    columns = {
+        wanted: table.column(name).to_numpy().astype(np.float64, copy=False)
+        for wanted, name in names.items()
+    }
+    return names, columns, header_line, body
+
+
+def read_csv(
+    path: str | os.PathLike[str], requested: list[str], *, time: str | None = None
+) -> Table:
+    """Read the requested columns (and the time column) of a CSV file with a header row."""
+    path = Path(path)
+    raw = _read_bytes(path)
+    fast = _fast_columns(path, raw, requested, time)
+    lines_cache: list[np.ndarray] = []
+    if fast is not None:
+        names, columns, header_line, body = fast
+
+        def file_line(row: int) -> int:
+            if not lines_cache:
+                lines_cache.append(_data_lines(raw, body, header_line))
+            return int(lines_cache[0][row])
+    else:
+        _, names, columns, lines = _slow_columns(path, requested, time)
+        lines_cache.append(np.asarray(lines))
+
+        def file_line(row: int) -> int:
+            return int(lines_cache[0][row])
+
+    def row_label(row: int) -> str:
+        return f"line {file_line(row)}"
+
+    stamps = columns[time] if time else None
+    if time and time not in requested:
+        del columns[time]
+    return Table(
+        source=str(path),
+        columns=columns,
+        names=names,
+        time=stamps,
+        time_name=names[time] if time else None,
+        time_unit=None,
+        row_label=row_label,
+        resolution=(lambda: stamp_resolution(stamps)) if stamps is not None else (lambda: 0.0),
+    )
 
 
 def write_columns(path: str | os.PathLike[str], columns: dict[str, np.ndarray]) -> None:

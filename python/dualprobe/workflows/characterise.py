@@ -5,13 +5,13 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
-from dualprobe.io import EstimationError, InputError, load_columns, write_columns
+from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import reconstruct_pair
 from dualprobe.report.json import jsonable
@@ -23,6 +23,7 @@ __all__ = [
     "Characterisation",
     "characterise_arrays",
     "characterise_file",
+    "load_pair",
 ]
 
 ORDERS = (1, 2)
@@ -41,6 +42,7 @@ class Characterisation:
     rmse_vs_reference: float | None
     source: str | None = None
     requested_order: int | None = None
+    notes: tuple[str, ...] = ()  # one-line notes of the loader (units, jitter, interpolation)
 
     def to_json_dict(self) -> dict[str, Any]:
         """The `--json` document (see the issue 2 specification)."""
@@ -273,6 +275,26 @@ def characterise_arrays(
     )
 
 
+def load_pair(
+    path: str | os.PathLike[str],
+    columns: Sequence[str],
+    *,
+    time: str | None = "t",
+    time_unit: str | None = None,
+    sample_interval: float | None = None,
+) -> Recording:
+    """Load the columns of a recording in any format (CSV, Parquet, MDF4) for characterise:
+    jitter resampled, units converted (notes say so); a record with a gap is refused with a
+    message naming the gap (until the estimation uses the segments together)."""
+    if not time and sample_interval is None:
+        raise InputError("without a time column the sample interval must be given")
+    recording = load_recording(
+        path, columns, time=time or None, time_unit=time_unit, sample_interval=sample_interval
+    )
+    recording.require_contiguous("characterise")
+    return recording
+
+
 def characterise_file(
     path: str | os.PathLike[str],
     *,
@@ -286,35 +308,26 @@ def characterise_file(
     noise_std: float | Sequence[float] | None = None,
     reference: str | None = None,
     reconstruction: str | None = "smoother",
+    time_unit: str | None = None,
 ) -> Characterisation:
-    """Load a CSV recording and characterise it (see :func:`characterise_arrays`).
+    """Load a recording (CSV, Parquet or MDF4) and characterise it (see
+    :func:`characterise_arrays`).
 
-    Without a time column (``time=None`` or ``""``) the sample interval must be given.
+    Without a time column (``time=None`` or ``""``) the sample interval must be given;
+    ``time_unit`` (s, ms, us, min) overrides the unit read from the time column's header.
     """
     if sensor1 == sensor2:
         raise InputError(f"--sensor1 and --sensor2 name the same column {sensor1!r}")
-    if not time and sample_interval is None:
-        raise InputError("without a time column the sample interval must be given")
-    if sample_interval is not None and not (math.isfinite(sample_interval) and sample_interval > 0):
-        raise InputError(f"sample interval must be finite and > 0, got {sample_interval!r}")
     wanted = [sensor1, sensor2] + ([reference] if reference else [])
-    t, columns, interval = load_columns(path, wanted, time=time or None)
-    if t is not None and interval is not None:
-        if sample_interval is not None and abs(sample_interval - interval) > 1e-6 * interval:
-            raise InputError(
-                f"{path}: --sample-interval {sample_interval:g} disagrees with the time column "
-                f"({interval:.10g})"
-            )
-        ts = interval
-    else:
-        assert sample_interval is not None
-        ts = sample_interval
-        t = np.arange(columns[sensor1].size, dtype=np.float64) * ts
-    return characterise_arrays(
+    recording = load_pair(
+        path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval
+    )
+    columns = recording.columns
+    result = characterise_arrays(
         columns[sensor1],
         columns[sensor2],
-        ts,
-        time=t,
+        recording.sample_interval,
+        time=recording.t,
         columns=(sensor1, sensor2),
         method=method,
         order=order,
@@ -325,6 +338,7 @@ def characterise_file(
         reference_column=reference,
         source=str(path),
     )
+    return replace(result, notes=recording.notes)
 
 
 def write_json(result: Characterisation, path: str | os.PathLike[str]) -> None:

@@ -1,0 +1,272 @@
+"""Format-independent loading of a recording: CSV, Parquet or MDF4 in, seconds and checked
+float64 columns out (:func:`load_recording`), with the time base rules of
+:mod:`dualprobe.io.timebase` (units, jitter resampled, gaps split into segments).
+
+The format follows from the content (MDF4's ``MDF`` identification, Parquet's ``PAR1``
+magic) and otherwise from the extension (``.mf4``/``.mdf``, ``.parquet``/``.pq``: a file
+named so without the magic is refused); anything else is read as CSV text.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dualprobe.io.csv import read_csv
+from dualprobe.io.errors import InputError
+from dualprobe.io.mdf import MDF_MAGIC, read_mdf
+from dualprobe.io.parquet import PARQUET_MAGIC, read_parquet
+from dualprobe.io.table import Table
+from dualprobe.io.timebase import (
+    TIME_UNITS,
+    Gap,
+    analyse_time,
+    resample_segments,
+    time_unit_factor,
+    time_unit_of,
+)
+
+__all__ = ["FORMATS", "Recording", "detect_format", "load_columns", "load_recording"]
+
+FORMATS = ("csv", "parquet", "mdf4")
+_EXTENSIONS = {".mf4": "mdf4", ".mdf": "mdf4", ".parquet": "parquet", ".pq": "parquet"}
+# An interval of this many seconds or more read from a column without a unit gets a note.
+_LONG_INTERVAL = 5.0
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A loaded recording.
+
+    ``t`` in seconds (uniform within each segment; across a gap it jumps), ``columns`` the
+    requested columns (finite float64, same length), ``sample_interval`` in seconds,
+    ``segments`` the contiguous uniform stretches as slices of the rows, ``gaps`` between
+    them, ``notes`` one-line notes (unit read from the header, jitter resampled, gaps,
+    channels interpolated from another raster), ``source`` the file, ``format`` its format.
+    """
+
+    t: np.ndarray
+    columns: dict[str, np.ndarray]
+    sample_interval: float
+    segments: tuple[slice, ...]
+    gaps: tuple[Gap, ...]
+    notes: tuple[str, ...]
+    source: str
+    format: str
+
+    @property
+    def contiguous(self) -> bool:
+        return not self.gaps
+
+    def require_contiguous(self, what: str) -> None:
+        """Refuse (InputError, one line naming the gap) a record with a gap."""
+        if not self.gaps:
+            return
+        longest = max(self.segments, key=lambda s: s.stop - s.start)
+        more = f" and {len(self.gaps) - 1} more" if len(self.gaps) > 1 else ""
+        raise InputError(
+            f"{self.source}: {self.gaps[0]}{more}; {what} needs a record without gaps: cut "
+            f"the file at the gap (longest segment: rows {longest.start + 1}-{longest.stop}, "
+            f"{(longest.stop - longest.start - 1) * self.sample_interval:.6g} s)"
+        )
+
+
+def detect_format(path: str | os.PathLike[str]) -> str:
+    """'csv', 'parquet' or 'mdf4' from the file's first bytes, else its extension."""
+    path = Path(path)
+    head = b""
+    if path.is_file():
+        try:
+            with path.open("rb") as handle:
+                head = handle.read(8)
+        except OSError as exc:
+            raise InputError(f"{path}: cannot read ({exc.strerror or exc})") from None
+    # "MDF     ", or "UnFinMF " for a file the logger did not finalise (asammdf reads both)
+    if (head.startswith(MDF_MAGIC[:3]) and head[3:8].strip() == b"") or head.startswith(
+        b"UnFinMF"
+    ):
+        return "mdf4"
+    if head.startswith(PARQUET_MAGIC):
+        return "parquet"
+    expected = _EXTENSIONS.get(path.suffix.lower())
+    if expected is not None and path.is_file():
+        what = "an MDF4" if expected == "mdf4" else "a Parquet"
+        raise InputError(f"{path}: not {what} file (its first bytes are {head[:8]!r})")
+    return "csv"
+
+
+def _read_table(
+    path: Path, columns: list[str], time: str | None, raster: str | None
+) -> tuple[Table, str]:
+    kind = detect_format(path)
+    if kind == "mdf4":
+        return read_mdf(path, columns, time=time, raster=raster), kind
+    if kind == "parquet":
+        return read_parquet(path, columns, time=time), kind
+    return read_csv(path, columns, time=time), kind
+
+
+def _time_unit(table: Table, option: str | None) -> tuple[float, str | None]:
+    """Factor to seconds and the note for a unit read from the file."""
+    if option is not None:
+        time_unit_factor(option)
+    found = table.time_unit if table.fixed_unit else time_unit_of(table.time_name or "")
+    if found is not None and option is not None and found != option:
+        what = "the format's unit" if table.fixed_unit else "the unit in the header"
+        raise InputError(
+            f"{table.source}: --time-unit {option} conflicts with {what} ({found}) of time "
+            f"column {table.time_name!r}"
+        )
+    unit = option or found or "s"
+    note = None
+    if option is None and found is not None and found != "s" and not table.fixed_unit:
+        note = f"time column {table.time_name!r}: unit {found} read from the header"
+    return TIME_UNITS[unit], note
+
+
+def _check_finite(table: Table, columns: dict[str, np.ndarray]) -> None:
+    for name, values in columns.items():
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            first = int(bad[0])
+            raise InputError(
+                f"{table.source}: {table.row_label(first)}, column {table.names.get(name, name)!r}"
+                f": non-finite value {values[first]!r}"
+            )
+
+
+def load_recording(
+    path: str | os.PathLike[str],
+    columns: Sequence[str],
+    *,
+    time: str | None = "t",
+    time_unit: str | None = None,
+    sample_interval: float | None = None,
+    min_rows: int = 10,
+    raster: str | None = None,
+    strict: bool = False,
+) -> Recording:
+    """Load columns of a recording in any supported format (CSV, Parquet, MDF4).
+
+    Parameters
+    ----------
+    columns:
+        The data columns (channels) to return; a column whose name is this followed by a unit
+        in parentheses or brackets is found too.
+    time:
+        The time column (CSV, Parquet), or None / "" without one; then ``sample_interval`` is
+        needed. MDF4 uses the master channel of the raster's group.
+    time_unit:
+        s, ms, us or min; default: the unit after the time column's name, else seconds.
+    sample_interval:
+        Seconds between rows when there is no time column; with one, a check.
+    raster:
+        MDF4: the channel whose group's time base is used (default: ``columns[0]``).
+    strict:
+        Refuse jitter and gaps instead of resampling / splitting.
+
+    Raises
+    ------
+    InputError
+        With a one-line message naming the file and, where relevant, row and column.
+    """
+    path = Path(path)
+    time = time or None
+    wanted = list(dict.fromkeys(columns))
+    if not wanted:
+        raise InputError("no columns requested")
+    if sample_interval is not None and not (math.isfinite(sample_interval) and sample_interval > 0):
+        raise InputError(f"sample interval must be finite and > 0, got {sample_interval!r}")
+    table, kind = _read_table(path, wanted, time, raster)
+    notes = list(table.notes)
+    data = {name: table.columns[name] for name in wanted}
+    size = next(iter(data.values())).size
+    if table.time is not None:
+        min_rows = max(min_rows, 2)
+    if size < min_rows:
+        raise InputError(f"{path}: too few data rows ({size}; need at least {min_rows})")
+    stamps = table.time
+    _check_finite(table, data if stamps is None else {**data, time or "time": stamps})
+    if stamps is None:
+        if sample_interval is None:
+            raise InputError(f"{path}: no time column; give the sample interval")
+        t = np.arange(size, dtype=np.float64) * sample_interval
+        whole = (slice(0, size),)
+        return Recording(t, data, float(sample_interval), whole, (), (), str(path), kind)
+
+    factor, unit_note = _time_unit(table, time_unit)
+    if unit_note:
+        notes.append(unit_note)
+    t = stamps * factor if factor != 1.0 else np.asarray(stamps, dtype=np.float64)
+    time_name = table.time_name
+
+    def where(row: int) -> str:
+        return f"{path}: {table.row_label(row)}, column {time_name!r}"
+
+    base = analyse_time(
+        t,
+        where,
+        label=table.row_label,
+        resolution=lambda: table.resolution() * factor,
+        strict=strict,
+    )
+    segments = tuple(slice(start, stop) for start, stop in base.segments)
+    if not base.regular:
+        scatter = base.jitter
+        t, data, segments = resample_segments(t, data, base)
+        notes.append(
+            f"clock jitter: intervals scatter by up to {scatter * 1e3:.3g} ms "
+            f"({scatter / base.interval * 100:.1f} % of {base.interval * 1e3:.6g} ms); resampled "
+            "linearly onto a uniform grid"
+        )
+    notes.extend(f"{gap}: the record is split there" for gap in base.gaps)
+    if base.interval >= _LONG_INTERVAL and time_unit is None and unit_note is None:
+        if not table.fixed_unit and time_unit_of(time_name or "") is None:
+            notes.append(
+                f"time column {time_name!r} read in seconds (interval {base.interval:.6g} s); "
+                "give --time-unit if it is in ms, us or min"
+            )
+    if sample_interval is not None:
+        tolerance = (1e-6 if base.regular else 1e-3) * base.interval
+        if abs(sample_interval - base.interval) > tolerance:
+            raise InputError(
+                f"{path}: --sample-interval {sample_interval:g} disagrees with the time column "
+                f"({base.interval:.10g})"
+            )
+    return Recording(
+        t, data, base.interval, segments, base.gaps, tuple(notes), str(path), kind
+    )
+
+
+def load_columns(
+    path: str | os.PathLike[str],
+    columns: Sequence[str],
+    *,
+    time: str | None = "t",
+    min_rows: int = 10,
+    time_unit: str | None = None,
+) -> tuple[np.ndarray | None, dict[str, np.ndarray], float | None]:
+    """The strict loader: (time in s or None, {column: array}, sample interval or None).
+
+    Any format; the time column must be uniform (no jitter, no gaps: see
+    :func:`load_recording` for a loader that resamples jitter and splits at gaps).
+    """
+    time = time or None
+    recording = load_recording(
+        path,
+        columns,
+        time=time,
+        time_unit=time_unit,
+        sample_interval=None if time else 1.0,
+        min_rows=min_rows,
+        strict=True,
+    )
+    data = {name: recording.columns[name] for name in columns}
+    if time is None:
+        return None, data, None
+    return recording.t, data, recording.sample_interval

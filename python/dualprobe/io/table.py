@@ -1,0 +1,68 @@
+"""What every reader (CSV, Parquet, MDF4) returns, and the column look-up they share."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dualprobe.io.errors import InputError
+from dualprobe.io.timebase import split_unit
+
+__all__ = ["Table", "resolve_columns"]
+
+
+@dataclass
+class Table:
+    """Columns read from a file, before the time base is checked.
+
+    ``columns`` is keyed by the requested names (float64, not yet checked for finiteness);
+    ``time`` holds the raw stamps in ``time_unit`` (None: unknown, seconds unless told), or None
+    without a time column; ``row_label(i)`` names data row i as the file shows it ("line 12",
+    "row 12", "sample 12 of group 0"); ``resolution()`` is the printed resolution of the raw
+    stamps (0 when unknown); ``fixed_unit``: the format defines the unit (MDF4: seconds).
+    """
+
+    source: str
+    columns: dict[str, np.ndarray]
+    names: dict[str, str]
+    time: np.ndarray | None
+    time_name: str | None
+    time_unit: str | None
+    row_label: Callable[[int], str]
+    notes: list[str] = field(default_factory=list)
+    resolution: Callable[[], float] = lambda: 0.0
+    fixed_unit: bool = False
+
+
+def resolve_columns(
+    source: str, available: Sequence[str], requested: Sequence[str]
+) -> dict[str, str]:
+    """Requested name -> name in the file: the exact name, else the one column whose name is
+    the requested one followed by a unit in parentheses or brackets (``--time Time`` finds
+    ``Time (ms)``). A missing column lists the available ones."""
+    bases: dict[str, list[str]] = {}
+    for name in available:
+        bases.setdefault(split_unit(name)[0], []).append(name)
+    found: dict[str, str] = {}
+    missing: list[str] = []
+    for name in requested:
+        if name in available:
+            found[name] = name
+        elif len(bases.get(name, [])) == 1:
+            found[name] = bases[name][0]
+        elif len(bases.get(name, [])) > 1:
+            raise InputError(
+                f"{source}: column {name!r} is ambiguous: "
+                f"{', '.join(repr(c) for c in bases[name])}; give the full name"
+            )
+        else:
+            missing.append(name)
+    if missing:
+        which = "columns" if len(missing) > 1 else "column"
+        raise InputError(
+            f"{source}: missing {which} {', '.join(repr(m) for m in missing)}; "
+            f"available: {', '.join(available)}"
+        )
+    return found
