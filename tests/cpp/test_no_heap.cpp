@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <atomic>
+#include <cmath>
 #include <cstdlib>
 #include <new>
 
@@ -50,6 +51,41 @@ TYPED_TEST(NoHeapTest, UpdateAndSolveDoNotAllocate) {
     EXPECT_EQ(g_allocations.load(), before);
     EXPECT_EQ(result.status, dualprobe::Status::ok);
   }
+}
+
+TYPED_TEST(NoHeapTest, ScheduledSvfUpdateSolveAndMomentsDoNotAllocate) {
+  // The flow-scheduled SVF (design.md 1.5): Basis 1 (the ECU variants) and the affine split.
+  using S = TypeParam;
+  const auto series = dualprobe::test::difference_equation_pair(3000, 12.48, 28.95, 0.1);
+  dualprobe::SvfConfig<S> config;
+  config.sample_interval = S(0.1);
+  config.filter_time_constant = S(2.0);
+  config.sigma1 = S(0.05);
+  config.sigma2 = S(0.05);
+  config.direction_half_window1 = 5;
+  config.direction_half_window2 = 5;
+  dualprobe::SvfScheduled<S, 1> first;
+  dualprobe::SvfScheduled<S, 2> second;
+  dualprobe::SvfScheduledHysteresis<S, dualprobe::StaticModel::affine> split;
+  ASSERT_EQ(first.configure(config), dualprobe::Status::ok);
+  ASSERT_EQ(second.configure(config), dualprobe::Status::ok);
+  ASSERT_EQ(split.configure(config), dualprobe::Status::ok);
+  const long before = g_allocations.load();
+  Eigen::internal::set_is_malloc_allowed(false);
+  for (std::size_t k = 0; k < series.t1.size(); ++k) {
+    const S psi = S(1.0 + 0.3 * std::sin(0.001 * double(k)));
+    first.update(S(series.t1[k]), S(series.t2[k]), psi);
+    second.update(S(series.t1[k]), S(series.t2[k]), &psi, S(1) / psi);
+    split.update(S(series.t1[k]), S(series.t2[k]), psi);
+  }
+  const auto a = first.solve();
+  const auto b = second.solve(second.moments());
+  const auto c = split.solve();
+  Eigen::internal::set_is_malloc_allowed(true);
+  EXPECT_EQ(g_allocations.load(), before);
+  EXPECT_NE(a.status, dualprobe::Status::not_ready);
+  EXPECT_NE(b.status, dualprobe::Status::not_ready);
+  EXPECT_NE(c.status, dualprobe::Status::not_ready);
 }
 
 TEST(NoHeap, EstimatorSizeIsFixedAndSmall) {

@@ -1,5 +1,6 @@
-// Streaming state-variable-filter (SVF) cross-relation estimator (design.md 1.4, issues 6 and 7).
-// The batch reference and full specification is python/dualprobe/reference/svf.py.
+// Streaming state-variable-filter (SVF) cross-relation estimator (design.md 1.4, 1.5; issues 6
+// and 7). The batch references and full specifications are python/dualprobe/reference/svf.py
+// and (flow schedule) python/dualprobe/reference/svf_schedule.py.
 //
 // Eliminating the gas temperature, P1(s) T1 = g P2(s) T2 + o (unit static model: g = 1, o = 0).
 // Both signals pass the same filter F(s) = 1/(1 + tf s)^(order+1) (svf_filter.hpp, exact FOH);
@@ -16,17 +17,60 @@
 // derivative of the sensor being filtered (ZOH) with the weights h and 1 - h of a zero-lag
 // direction classification that looks w samples ahead (a fixed-capacity delay line).
 //
+// Flow schedule (Basis = K >= 1, design.md 1.5): the time constants of both sensors follow one
+// common factor, tau(t) = tau_ref phi(t), psi = 1/phi, and the static relation is scheduled by
+// per-sample weights b_1(k)..b_K(k), psi = sum_j a_j b_j (K = 1: psi is the weight itself).
+// Exact for first-order sensors: psi (T2 - T1) = tau1 T1' - tau2 T2'; for two-stage sensors
+// whose stages both scale with phi: psi (Tg - T) = c T' + d (phi T')'. Columns (every F starts
+// in steady state at its input's first value):
+//   order 1, unit:   z = [x_1(T1), -x_1(T2), F(b_1 (T2 - T1)), ..., F(b_K (T2 - T1))]
+//   order 2, unit:   z = [x_1(T1), y_1(T1), -x_1(T2), -y_1(T2), F(b_1 (T2 - T1)), ...]
+//   affine (K = 1):  static pair [-F(psi T2), -F(psi T1)], offset regressor r = F(psi)
+//   hysteresis (K = 1): split derivative columns as above, static column(s) scheduled.
+// y_1(T) = tf s F(tf phi s T): a ZOH cascade driven on interval k by
+// (phi(k) + phi(k+1))/2 (T(k+1) - T(k)) tf/Ts (trapezoidal mean of phi: second order like the
+// FOH columns; phi(k) alone biased the sheath time constants by 0.1-0.5 % on a noise-free 10 Hz
+// drive cycle, the mean <= 1.1e-5) and y_1 the derivative-map row 1 of its states; with
+// phi == 1 it is x_2 exactly.
+// theta (last entry -1): order 1 [tau1/tf, tau2/tf, -a_1/a_K, .., -1], order 2 [c1/tf, d1/tf^2,
+// c2/tf, d2/tf^2, -a_1/a_K, .., -1] (time constants at psi = 1). For K > 1 the time constants
+// are computed as if a_K were 1 (they are tau/a_K): the caller renormalises psi.
+// Centring: the unit static column is F(b_j (u2 - u1)) + (T2(0) - T1(0)) F(b_j), u_i = T_i -
+// T_i(0); the row is accumulated as [z_centred, r_1..r_K] with r_j = F(b_j) and solve() adds
+// the offsets back exactly. Affine: the static pair is accumulated as d = F(psi (u2 - u1)) and
+// s = -F(psi u1) (the offsets times r vanish in the projection), the row as [z, r].
+// Noise: to first order in the variation of the weights over the filter memory, each column's
+// noise is a per-row weight times the stationary noise of its unscheduled source column C0
+// (derivative columns 1, split h / 1 - h, y_1 columns phi with source x_2, static columns b_j),
+// so C[a][b] = C0[src a][src b] sum_rows w_a w_b, from the moments of
+// omega(k) = [1, (h1, h2), (phi), b_1..b_K] (the entries the variant has; the first row of the
+// hysteresis variant, which has no interval, counts as undecided, h = 1/2). C only enters the
+// GTLS bias correction.
+//
 // update() is O(1) and allocation free: it advances the filter cascades and accumulates
-//   * the scatter of the augmented row [z, 1] (so sum z z^T, sum z and the row count in one
-//     SymmetricScatter), block-summed: a block of 64 rows is summed alone and then added to the
-//     total with Kahan compensation, which keeps float sums at the rounding of the rows
-//     themselves however long the record (plain summation: up to 10x worse on 45000 rows);
-//   * during the first (60 + 2m) tf/Ts rows, sum z b^T, sum b b^T and sum b for the filter's free
-//     responses b(k) = phi^k e_0: every start-up transient of the filtered columns lies in their
-//     span and solve() projects it out (no warm-up samples are discarded);
-//   * hysteresis: moments of the direction weights (h1, h2) for the split noise covariance.
+//   * the scatter of the augmented row [z, e] (so sum z z^T, sum z e^T and sum e e^T in one
+//     SymmetricScatter; e = 1 without a schedule, r_1..r_K or r with one), block-summed: a block
+//     of 64 rows is summed alone and then added to the total with Kahan compensation, which
+//     keeps float sums at the rounding of the rows themselves however long the record (plain
+//     summation: up to 10x worse on 45000 rows);
+//   * during the first (60 + 2m) tf/Ts rows, sum z b^T, sum e b^T and sum b b^T for the filter's
+//     free responses b(k) = phi^k e_0: every start-up transient of the filtered columns lies in
+//     their span and solve() projects it out (no warm-up samples are discarded);
+//   * hysteresis and schedule: the moments of omega for the noise covariance.
 // The signals are centred on their first samples (kept as offsets): the filter and the moments
 // then work on temperature changes rather than on ~300 K absolute values.
+//
+// Moments (resampling): everything solve() reads is a fixed-length vector of double moments,
+// moments() (MomentLayout: packed augmented scatter, transient cross sum z b^T and sum e b^T,
+// packed transient Gram, packed omega moments, row count), plus the first samples T1(0), T2(0)
+// kept outside it. Without forgetting every entry is a sum over rows, so moment vectors of
+// disjoint stretches of rows add up: snapshots every L samples, differenced, give block
+// moments, and solve(total - block) is the estimate without that block's rows (delete-a-block
+// jackknife). Differences keep each entry to the rounding of the running totals: the transient
+// moments of the rows after the first block, decayed to e^-(L Ts/tf) of its own, round away
+// once L Ts/tf exceeds ~20, and the replicate without the first block then projects none.
+// With forgetting the vector is a snapshot for solve() only (the transient moments carry their
+// decay).
 //
 // solve() assembles the projected scatter, runs GTLS exactly as the reference does (scaling by
 // diag(S)^-1/2, C regularised by 1e-12 max(trace, 1) I) in SolveScalar, double by default also
@@ -137,32 +181,69 @@ struct WindowSum {
 // Static: unit or affine model. Hysteresis: heating/cooling split (order 1). MaxHalfWindow:
 // capacity of the look-ahead delay line (direction windows beyond it are invalid_argument; 128
 // covers tf/Ts up to 128, e.g. tf = 12.8 s at 10 Hz). SolveScalar: precision of solve().
+// Basis: 0 = no flow schedule (update(t1, t2)); K >= 1 = static relation scheduled by K
+// per-sample weights (update(t1, t2, weights, phi); K = 1 also update(t1, t2, psi)); the affine
+// model and the hysteresis split take K = 1 only; K <= 8.
 template <typename Scalar, int Order, StaticModel Static = StaticModel::unit,
-          bool Hysteresis = false, int MaxHalfWindow = 128, typename SolveScalar = double>
+          bool Hysteresis = false, int MaxHalfWindow = 128, typename SolveScalar = double,
+          int Basis = 0>
 class SvfEstimator {
  public:
   static_assert(std::is_floating_point<Scalar>::value, "Scalar must be float or double");
   static_assert(Order == 1 || Order == 2, "the SVF estimator supports order 1 and 2");
   static_assert(!Hysteresis || Order == 1, "the hysteresis split is defined for order 1 only");
   static_assert(MaxHalfWindow >= 1 && MaxHalfWindow <= 65536, "direction window capacity");
+  static_assert(Basis >= 0 && Basis <= 8, "schedule basis: 0 (none) up to 8 weights");
+  static_assert(Basis <= 1 || Static == StaticModel::unit,
+                "the affine static model takes a single schedule psi (Basis 1)");
+  static_assert(Basis <= 1 || !Hysteresis, "the hysteresis split takes a single schedule psi");
 
   static constexpr int order = Order;
   static constexpr int states = Order + 1;  // cascade length m
   static constexpr bool affine = Static == StaticModel::affine;
   static constexpr bool hysteresis = Hysteresis;
+  static constexpr int schedule_basis = Basis;
+  static constexpr bool scheduled = Basis > 0;
+  // The unscheduled, unsplit layout: the noise model's source columns.
   static constexpr int unsplit_columns = 2 * Order + (affine ? 2 : 1);
-  static constexpr int columns = unsplit_columns + (Hysteresis ? 2 : 0);
+  static constexpr int static_columns = affine ? 2 : (scheduled ? Basis : 1);
+  static constexpr int dynamic_columns = Hysteresis ? 4 : 2 * Order;
+  static constexpr int columns = dynamic_columns + static_columns;
+  // Appended to z in the accumulated row: 1 (no schedule), r_1..r_K (unit) or r (affine).
+  static constexpr int extras = scheduled ? Basis : 1;
+  static constexpr int augmented_size = columns + extras;
   static constexpr int basis_size = states + (affine ? 1 : 0);
+  // omega = [1, (h1, h2), (phi), b_1..b_K]; without a schedule [has interval, h1, h2] or [1].
+  static constexpr int omega_dim =
+      scheduled ? 1 + (Hysteresis ? 2 : 0) + (Order == 2 ? 1 : 0) + Basis : (Hysteresis ? 3 : 1);
   static constexpr int max_half_window = MaxHalfWindow;
   static constexpr int block_length = 64;
   // Hysteresis look-back and look-ahead: samples n - 2W - 2 .. n.
   static constexpr int ring_size = Hysteresis ? 2 * MaxHalfWindow + 3 : 1;
+
+  // Offsets and lengths of the moment vector's parts (packed = upper triangle row by row).
+  struct MomentLayout {
+    static constexpr int scatter = 0;  // packed sum [z, e][z, e]^T (working coordinates)
+    static constexpr int scatter_size = augmented_size * (augmented_size + 1) / 2;
+    static constexpr int cross = scatter + scatter_size;  // sum z b^T, row-major columns x states
+    static constexpr int cross_size = columns * states;
+    static constexpr int extra_cross = cross + cross_size;  // sum e b^T, row-major
+    static constexpr int extra_cross_size = extras * states;
+    static constexpr int gram = extra_cross + extra_cross_size;  // packed sum b b^T
+    static constexpr int gram_size = states * (states + 1) / 2;
+    static constexpr int omega = gram + gram_size;  // packed sum omega omega^T
+    static constexpr int omega_size = omega_dim * (omega_dim + 1) / 2;
+    static constexpr int rows = omega + omega_size;  // number of rows (not forgetting-weighted)
+    static constexpr int size = rows + 1;
+  };
 
   using Config = SvfConfig<Scalar>;
   using Result = SvfResult<Scalar, Order, columns>;
   using Row = Eigen::Matrix<Scalar, columns, 1>;
   using Matrix = Eigen::Matrix<Scalar, columns, columns>;
   using StateVector = Eigen::Matrix<Scalar, states, 1>;
+  using MomentVector = Eigen::Matrix<double, MomentLayout::size, 1>;
+  using OmegaMatrix = Eigen::Matrix<Scalar, omega_dim, omega_dim>;
 
   SvfEstimator() noexcept { reset(); }
 
@@ -217,6 +298,8 @@ class SvfEstimator {
     offset2_ = Scalar(0);
   }
 
+  // Without a schedule (Basis == 0).
+  template <int B = Basis, typename std::enable_if<B == 0, int>::type = 0>
   Status update(Scalar t1, Scalar t2) noexcept {
     if (!std::isfinite(t1) || !std::isfinite(t2)) return Status::non_finite_input;
     if (samples_ == 0) {
@@ -226,17 +309,7 @@ class SvfEstimator {
     const Scalar u1 = t1 - offset1_;
     const Scalar u2 = t2 - offset2_;
     if constexpr (Hysteresis) {
-      head_ = samples_ == 0 ? 0 : (head_ + 1 == std::size_t(ring_size) ? 0 : head_ + 1);
-      ring_[head_] = {u1, u2};
-      ++samples_;
-      const std::uint64_t n = samples_ - 1;
-      // Fill the look-ahead windows of interval 0 (samples 2 .. w + 1).
-      for (int i = 0; i < 2; ++i) {
-        if (n >= 2 && n <= std::uint64_t(window_[i]) + 1) {
-          state_.after[i].grow(i == 0 ? u1 : u2, window_[i]);
-        }
-      }
-      if (n >= std::uint64_t(delay_)) process_split_row(state_, n - std::uint64_t(delay_), false);
+      push_ring(u1, u2, Weights::Zero());
     } else {
       if (samples_ > 0) {
         foh_.step(state_.v1, state_.u1, u1);
@@ -245,54 +318,133 @@ class SvfEstimator {
       state_.u1 = u1;
       state_.u2 = u2;
       ++samples_;
-      accumulate(state_, unsplit_row(state_.v1, state_.v2), DirectionRow::Zero());
+      accumulate(state_, unsplit_row(state_.v1, state_.v2), Extra::Ones(), OmegaRow::Zero());
     }
     return Status::ok;
   }
 
-  Result solve() const noexcept {
+  // With a schedule (Basis == K >= 1): `weights` points to the K weights b_1(k)..b_K(k) of this
+  // sample (K = 1: psi(k) > 0); `phi` is used by order 2 only (phi(k) > 0, the caller's 1/psi).
+  // Non-finite values: non_finite_input; psi (K = 1) or phi (order 2) <= 0: invalid_argument;
+  // either way the estimator is left as it was.
+  template <int B = Basis, typename std::enable_if<(B >= 1), int>::type = 0>
+  Status update(Scalar t1, Scalar t2, const Scalar* weights, Scalar phi) noexcept {
+    if (!std::isfinite(t1) || !std::isfinite(t2)) return Status::non_finite_input;
+    Weights w;
+    for (int j = 0; j < Basis; ++j) {
+      w[j] = weights[j];
+      if (!std::isfinite(w[j])) return Status::non_finite_input;
+    }
+    if (Order == 2 && !std::isfinite(phi)) return Status::non_finite_input;
+    if (Basis == 1 && !(w[0] > Scalar(0))) return Status::invalid_argument;
+    if (Order == 2 && !(phi > Scalar(0))) return Status::invalid_argument;
+    if (Order == 1) phi = Scalar(1);  // unused
+    if (samples_ == 0) {
+      offset1_ = t1;
+      offset2_ = t2;
+      state_.first = w;
+    }
+    const Scalar u1 = t1 - offset1_;
+    const Scalar u2 = t2 - offset2_;
     if constexpr (Hysteresis) {
-      State finished = state_;  // the tail rows (clipped look-ahead) on a copy: solve stays const
-      const std::uint64_t first = samples_ > std::uint64_t(delay_) ? samples_ - delay_ : 0;
-      for (std::uint64_t r = first; r < samples_; ++r) process_split_row(finished, r, true);
-      return solve_state(finished);
+      push_ring(u1, u2, w);
     } else {
-      return solve_state(state_);
+      if (samples_ > 0) {
+        foh_.step(state_.v1, state_.u1, u1);
+        foh_.step(state_.v2, state_.u2, u2);
+        step_schedule(state_, state_.u1, state_.u2, state_.weights, state_.phi, u1, u2, w, phi);
+      }
+      state_.u1 = u1;
+      state_.u2 = u2;
+      state_.weights = w;
+      state_.phi = phi;
+      ++samples_;
+      OmegaRow omega;
+      omega[0] = Scalar(1);
+      if constexpr (Order == 2) omega[1] = phi;
+      for (int j = 0; j < Basis; ++j) omega[omega_basis + j] = w[j];
+      accumulate(state_, scheduled_row(state_), offset_regressors(state_), omega);
+    }
+    return Status::ok;
+  }
+
+  // K = 1 convenience: phi = 1/psi.
+  template <int B = Basis, typename std::enable_if<B == 1, int>::type = 0>
+  Status update(Scalar t1, Scalar t2, Scalar psi) noexcept {
+    if (!std::isfinite(psi)) return Status::non_finite_input;
+    const Scalar phi = psi > Scalar(0) ? Scalar(1) / psi : Scalar(1);  // psi <= 0 refused below
+    return update(t1, t2, &psi, phi);
+  }
+
+  Result solve() const noexcept { return solve(moments(), offset1_, offset2_); }
+
+  // Solve from a moment vector (e.g. a sum of block moments) with this estimator's
+  // configuration and first samples, or with the first samples T1(0), T2(0) given.
+  Result solve(const MomentVector& m) const noexcept { return solve(m, offset1_, offset2_); }
+  Result solve(const MomentVector& m, Scalar offset1, Scalar offset2) const noexcept {
+    return solve_moments(unpack(m), offset1, offset2);
+  }
+
+  // What solve() reads (the hysteresis variant: including the last w rows, whose look-ahead is
+  // clipped by the end of the record, run on a copy).
+  MomentVector moments() const noexcept {
+    if constexpr (Hysteresis) {
+      return moment_vector(finished());
+    } else {
+      return moment_vector(state_);
     }
   }
+  // The rows accumulated so far (the hysteresis variant lags by its delay, max(w1, w2) rows):
+  // consecutive snapshots differ by the rows in between.
+  MomentVector accumulated_moments() const noexcept { return moment_vector(state_); }
 
   const Config& config() const noexcept { return config_; }
   std::uint64_t samples() const noexcept { return samples_; }
+  // The first samples T1(0), T2(0) (the centring offsets; 0 before the first sample).
+  Scalar offset1() const noexcept { return offset1_; }
+  Scalar offset2() const noexcept { return offset2_; }
   // Forgetting-weighted number of accumulated rows (the hysteresis variant lags by the delay).
-  Scalar rows() const noexcept { return moments(state_)(columns, columns); }
-  // The projected scatter that solve() hands to GTLS (documented column order).
-  Matrix scatter() const noexcept {
-    if constexpr (Hysteresis) {
-      State finished = state_;
-      const std::uint64_t first = samples_ > std::uint64_t(delay_) ? samples_ - delay_ : 0;
-      for (std::uint64_t r = first; r < samples_; ++r) process_split_row(finished, r, true);
-      return documented(projected_scatter(finished)).template cast<Scalar>();
+  Scalar rows() const noexcept {
+    if constexpr (scheduled) {
+      return omega_moments(state_)(0, 0);
     } else {
-      return documented(projected_scatter(state_)).template cast<Scalar>();
+      return augmented(state_)(columns, columns);
     }
   }
-  // Noise covariance of one unsplit row for the configured sigma1, sigma2 (documented order).
+  // Accumulated moments of omega (see the file comment), forgetting-weighted.
+  OmegaMatrix omega_moments() const noexcept { return omega_moments(state_); }
+  // The projected scatter that solve() hands to GTLS (documented column order).
+  Matrix scatter() const noexcept {
+    return documented(projected_scatter(unpack(moments()), offset1_, offset2_))
+        .template cast<Scalar>();
+  }
+  // Noise covariance of one unsplit, unscheduled row for the configured sigma1, sigma2
+  // (documented order): C0 of the file comment.
   Eigen::Matrix<Scalar, unsplit_columns, unsplit_columns> noise_covariance() const noexcept {
     return documented(noise_covariance_).template cast<Scalar>();
   }
+  // The accumulated noise covariance that solve() hands to GTLS (documented order).
+  Matrix accumulated_noise_covariance() const noexcept {
+    const Unpacked u = unpack(moments());
+    return documented(noise_moment(u, row_weight(u))).template cast<Scalar>();
+  }
 
  private:
-  using Augmented = Eigen::Matrix<Scalar, columns + 1, 1>;
-  using AugmentedMatrix = Eigen::Matrix<Scalar, columns + 1, columns + 1>;
-  using Packed = Eigen::Matrix<Scalar, (columns + 1) * (columns + 2) / 2, 1>;
-  static constexpr int direction_dim = Hysteresis ? 3 : 1;
-  using DirectionRow = Eigen::Matrix<Scalar, direction_dim, 1>;
-  using DirectionMatrix = Eigen::Matrix<Scalar, direction_dim, direction_dim>;
+  using Augmented = Eigen::Matrix<Scalar, augmented_size, 1>;
+  using AugmentedMatrix = Eigen::Matrix<Scalar, augmented_size, augmented_size>;
+  using Packed = Eigen::Matrix<Scalar, augmented_size*(augmented_size + 1) / 2, 1>;
+  using Extra = Eigen::Matrix<Scalar, extras, 1>;
+  using OmegaRow = Eigen::Matrix<Scalar, omega_dim, 1>;
+  using Weights = Eigen::Matrix<Scalar, (Basis > 0 ? Basis : 1), 1>;
   // The noise model in the working precision: its float rounding (1e-7) is far below its own
   // accuracy as a model, and it takes a sixth of the second-order estimator.
   using UnsplitMatrix = Eigen::Matrix<Scalar, unsplit_columns, unsplit_columns>;
   using SolveMatrix = Eigen::Matrix<SolveScalar, columns, columns>;
   using SolveRow = Eigen::Matrix<SolveScalar, columns, 1>;
+  using SolveAugmented = Eigen::Matrix<SolveScalar, augmented_size, augmented_size>;
+  // omega index of b_1 (and of phi for order 2: 1).
+  static constexpr int omega_basis = 1 + (Hysteresis ? 2 : 0) + (Order == 2 ? 1 : 0);
+  static constexpr int ring_width = scheduled ? 3 : 2;  // u1, u2 (, psi)
 
   // Hysteresis only: heat1, cool1, heat2, cool2 cascades and the classification windows
   // (an empty base otherwise, so the other variants carry none of it).
@@ -305,21 +457,45 @@ class SvfEstimator {
     std::array<svf_detail::WindowSum<Scalar>, 2> after{};
   };
 
+  // Schedule only: the cascades of the static columns (working coordinates: unit b_j (u2 - u1);
+  // affine psi (u2 - u1) and psi u1), of the offset regressors (input b_j - b_j(0)), of y_1
+  // (order 2, ZOH), and the last and first weights.
+  template <bool Schedule, typename Unused = void>
+  struct ScheduleState {};
+  template <std::size_t N>
+  static std::array<StateVector, N> at_rest() noexcept {
+    std::array<StateVector, N> cascades;
+    for (auto& v : cascades) v.setZero();  // Eigen leaves fixed-size matrices uninitialised
+    return cascades;
+  }
+  template <typename Unused>
+  struct ScheduleState<true, Unused> {
+    std::array<StateVector, std::size_t(static_columns)> statics{
+        at_rest<std::size_t(static_columns)>()};
+    std::array<StateVector, std::size_t(extras)> offsets{at_rest<std::size_t(extras)>()};
+    std::array<StateVector, std::size_t(Order == 2 ? 2 : 0)> slopes{
+        at_rest<std::size_t(Order == 2 ? 2 : 0)>()};
+    Weights weights{Weights::Zero()};
+    Weights first{Weights::Zero()};
+    Scalar phi{1};
+  };
+
   // Everything a row changes. solve() copies it to run the hysteresis tail.
-  struct State : SplitState<Hysteresis> {
-    // Block-summed moments of [z, 1] and (hysteresis) of [has interval, h1, h2].
-    SymmetricScatter<Scalar, columns + 1> block{};
+  struct State : SplitState<Hysteresis>, ScheduleState<scheduled> {
+    // Block-summed moments of [z, e] and (hysteresis, schedule) of omega.
+    SymmetricScatter<Scalar, augmented_size> block{};
     // Upper triangles, row by row; the sum is total - compensation (Kahan).
     Packed total{Packed::Zero()};
     Packed compensation{Packed::Zero()};
-    SymmetricScatter<Scalar, direction_dim> direction_block{};
-    DirectionMatrix direction_total{DirectionMatrix::Zero()};
+    SymmetricScatter<Scalar, omega_dim> omega_block{};
+    OmegaMatrix omega_total{OmegaMatrix::Zero()};
     Scalar block_decay{1};  // forgetting^(rows in the block)
     int block_rows{0};
-    // Free-response (start-up transient) moments.
+    // Free-response (start-up transient) moments: sum z b^T, sum b b^T and sum e b^T.
     Eigen::Matrix<Scalar, columns, states> cross{Eigen::Matrix<Scalar, columns, states>::Zero()};
     Eigen::Matrix<Scalar, states, states> gram{Eigen::Matrix<Scalar, states, states>::Zero()};
-    StateVector basis_sum{StateVector::Zero()};
+    Eigen::Matrix<Scalar, extras, states> extra_cross{
+        Eigen::Matrix<Scalar, extras, states>::Zero()};
     StateVector basis{StateVector::Zero()};
     Scalar transient_decay{1};  // forgetting^(rows since the transient window closed)
     std::uint64_t rows{0};
@@ -330,8 +506,18 @@ class SvfEstimator {
     Scalar u2{0};
   };
 
+  // A moment vector in the solve precision.
+  struct Unpacked {
+    SolveAugmented a;
+    Eigen::Matrix<SolveScalar, columns, states> cross;
+    Eigen::Matrix<SolveScalar, extras, states> extra_cross;
+    Eigen::Matrix<SolveScalar, states, states> gram;
+    Eigen::Matrix<SolveScalar, omega_dim, omega_dim> omega;
+    SolveScalar rows;
+  };
+
   // Working -> documented coordinates of a row moment: z_doc = B z_work, B the identity but for
-  // the affine static pair, (-x_0(T2), -x_0(T1)) = (-d + s, s).
+  // the affine static pair, (-x_0(T2), -x_0(T1)) = (-d + s, s) (scheduled: psi inside F).
   template <typename T, int N>
   static Eigen::Matrix<T, N, N> documented(const Eigen::Matrix<T, N, N>& m) noexcept {
     if constexpr (!affine) {
@@ -382,8 +568,117 @@ class SvfEstimator {
     return z;
   }
 
+  // Advances the schedule's cascades over one interval from (u1a, u2a, wa, phia) at sample k to
+  // (u1b, u2b, wb, phib) at k + 1 (the derivative cascades are stepped by the caller).
+  void step_schedule(State& s, Scalar u1a, Scalar u2a, const Weights& wa, Scalar phia,
+                     Scalar u1b, Scalar u2b, const Weights& wb, Scalar phib) const noexcept {
+    if constexpr (scheduled) {
+      if constexpr (affine) {
+        foh_.step(s.statics[0], wa[0] * (u2a - u1a), wb[0] * (u2b - u1b));
+        foh_.step(s.statics[1], wa[0] * u1a, wb[0] * u1b);
+      } else {
+        for (std::size_t j = 0; j < std::size_t(Basis); ++j) {
+          const auto i = Eigen::Index(j);
+          foh_.step(s.statics[j], wa[i] * (u2a - u1a), wb[i] * (u2b - u1b));
+        }
+      }
+      for (std::size_t j = 0; j < std::size_t(extras); ++j) {
+        const auto i = Eigen::Index(j);
+        foh_.step(s.offsets[j], wa[i] - s.first[i], wb[i] - s.first[i]);
+      }
+      if constexpr (Order == 2) {
+        const Scalar mean_phi = Scalar(0.5) * (phia + phib);
+        zoh_.step(s.slopes[0], mean_phi * ((u1b - u1a) * slope_scale_), Scalar(0));
+        zoh_.step(s.slopes[1], mean_phi * ((u2b - u2a) * slope_scale_), Scalar(0));
+      }
+    } else {
+      (void)s, (void)u1a, (void)u2a, (void)wa, (void)phia, (void)u1b, (void)u2b, (void)wb,
+          (void)phib;
+    }
+  }
+
+  // The static columns of a scheduled row (working coordinates) into z from `first_static`.
+  void static_columns_into(const State& s, Row& z) const noexcept {
+    if constexpr (scheduled) {
+      constexpr int first_static = dynamic_columns;
+      if constexpr (affine) {
+        z[first_static] = s.statics[0][states - 1];
+        z[first_static + 1] = -s.statics[1][states - 1];
+      } else {
+        for (int j = 0; j < Basis; ++j) z[first_static + j] = s.statics[std::size_t(j)][states - 1];
+      }
+    } else {
+      (void)s, (void)z;
+    }
+  }
+
+  // Scheduled row without the split (centred).
+  Row scheduled_row(const State& s) const noexcept {
+    Row z;
+    if constexpr (scheduled && !Hysteresis) {
+      const auto x1 = svf_derivatives<states>(s.v1);
+      const auto x2 = svf_derivatives<states>(s.v2);
+      if constexpr (Order == 1) {
+        z[0] = x1[1];
+        z[1] = -x2[1];
+      } else {
+        z[0] = x1[1];
+        z[1] = svf_derivatives<states>(s.slopes[0])[1];
+        z[2] = -x2[1];
+        z[3] = -svf_derivatives<states>(s.slopes[1])[1];
+      }
+      static_columns_into(s, z);
+    } else {
+      (void)s;
+      z.setZero();
+    }
+    return z;
+  }
+
+  // The offset regressors r_j = F(b_j) (steady state at b_j(0)); 1 without a schedule.
+  Extra offset_regressors(const State& s) const noexcept {
+    Extra e;
+    if constexpr (scheduled) {
+      for (int j = 0; j < extras; ++j) e[j] = s.offsets[std::size_t(j)][states - 1] + s.first[j];
+    } else {
+      (void)s;
+      e.setOnes();
+    }
+    return e;
+  }
+
+  // Hysteresis: the sample into the delay line, then the row whose look-ahead is complete.
+  void push_ring(Scalar u1, Scalar u2, const Weights& w) noexcept {
+    if constexpr (Hysteresis) {
+      head_ = samples_ == 0 ? 0 : (head_ + 1 == std::size_t(ring_size) ? 0 : head_ + 1);
+      ring_[head_][0] = u1;
+      ring_[head_][1] = u2;
+      if constexpr (scheduled) ring_[head_][2] = w[0];
+      ++samples_;
+      const std::uint64_t n = samples_ - 1;
+      // Fill the look-ahead windows of interval 0 (samples 2 .. w + 1).
+      for (int i = 0; i < 2; ++i) {
+        if (n >= 2 && n <= std::uint64_t(window_[i]) + 1) {
+          state_.after[i].grow(i == 0 ? u1 : u2, window_[i]);
+        }
+      }
+      if (n >= std::uint64_t(delay_)) process_split_row(state_, n - std::uint64_t(delay_), false);
+    }
+    (void)u1, (void)u2, (void)w;
+  }
+
+  // The hysteresis tail (clipped look-ahead) on a copy of the state.
+  State finished() const noexcept {
+    State s = state_;
+    if constexpr (Hysteresis) {
+      const std::uint64_t first = samples_ > std::uint64_t(delay_) ? samples_ - delay_ : 0;
+      for (std::uint64_t r = first; r < samples_; ++r) process_split_row(s, r, true);
+    }
+    return s;
+  }
+
   Scalar centred(int sensor, std::uint64_t index) const noexcept {
-    // index lies within the last ring_size samples (guaranteed by the callers)
+    // index lies within the last ring_size samples (guaranteed by the callers); sensor 2: psi
     const std::size_t back = static_cast<std::size_t>(samples_ - 1 - index);
     const std::size_t pos = head_ >= back ? head_ - back : head_ + std::size_t(ring_size) - back;
     return ring_[pos][static_cast<std::size_t>(sensor)];
@@ -407,14 +702,21 @@ class SvfEstimator {
       (void)r;
       (void)tail;
     } else {
-      if (r == 0) {
-        accumulate(s, Row::Zero(), DirectionRow::Zero());  // filters at rest, no interval yet
+      if (r == 0) {  // filters at rest, no interval yet
+        OmegaRow omega = OmegaRow::Zero();
+        if constexpr (scheduled) {
+          omega[0] = Scalar(1);
+          omega[1] = Scalar(0.5);  // undecided (the split columns are zero in this row)
+          omega[2] = Scalar(0.5);
+          omega[omega_basis] = s.first[0];
+        }
+        accumulate(s, Row::Zero(), offset_regressors(s), omega);
         return;
       }
       const std::uint64_t k = r - 1;
       const std::uint64_t last = samples_ - 1;
-      DirectionRow directions;
-      directions[0] = Scalar(1);
+      OmegaRow omega;
+      omega[0] = Scalar(1);
       for (int i = 0; i < 2; ++i) {
         const int w = window_[i];
         const std::uint64_t wu = std::uint64_t(w);
@@ -446,7 +748,7 @@ class SvfEstimator {
           after_count = Scalar(hi - lo + 1);
         }
         const Scalar h = direction(i, after_sum, after_count, before_sum, before_count);
-        directions[i + 1] = h;
+        omega[i + 1] = h;
         const Scalar now = centred(i, k);
         const Scalar next = centred(i, k + 1);
         const Scalar slope = (next - now) * slope_scale_;
@@ -456,38 +758,51 @@ class SvfEstimator {
         zoh_.step(cooling, slope * (Scalar(1) - h), Scalar(0));
         s.split.col(2 * i) = heating;
         s.split.col(2 * i + 1) = cooling;
-        foh_.step(i == 0 ? s.v1 : s.v2, now, next);
+        if constexpr (!scheduled) foh_.step(i == 0 ? s.v1 : s.v2, now, next);
       }
       Row z;
       z[0] = s.split(states - 1, 0);
       z[1] = s.split(states - 1, 1);
       z[2] = -s.split(states - 1, 2);
       z[3] = -s.split(states - 1, 3);
+      if constexpr (scheduled) {
+        Weights wa;
+        Weights wb;
+        wa[0] = centred(2, k);
+        wb[0] = centred(2, k + 1);
+        step_schedule(s, centred(0, k), centred(1, k), wa, Scalar(1), centred(0, k + 1),
+                      centred(1, k + 1), wb, Scalar(1));
+        static_columns_into(s, z);
+        omega[omega_basis] = wb[0];
+      } else {
         z[4] = s.v2[states - 1] - s.v1[states - 1];
-      if constexpr (affine) z[5] = -s.v1[states - 1];  // working coordinates
-      accumulate(s, z, directions);
-  
+        if constexpr (affine) z[5] = -s.v1[states - 1];  // working coordinates
+      }
+      accumulate(s, z, offset_regressors(s), omega);
     }
   }
 
-  void accumulate(State& s, const Row& z, const DirectionRow& directions) const noexcept {
+  void accumulate(State& s, const Row& z, const Extra& extra, const OmegaRow& omega) const
+      noexcept {
+    constexpr bool with_omega = Hysteresis || scheduled;
     Augmented augmented;
     augmented.template head<columns>() = z;
-    augmented[columns] = Scalar(1);
+    augmented.template tail<extras>() = extra;
     const Scalar lambda = config_.forgetting;
     if (forgetting_) {
       s.block.add(augmented, lambda);
-      if constexpr (Hysteresis) s.direction_block.add(directions, lambda);
+      if constexpr (with_omega) s.omega_block.add(omega, lambda);
       s.block_decay *= lambda;
     } else {
       s.block.add(augmented);
-      if constexpr (Hysteresis) s.direction_block.add(directions);
+      if constexpr (with_omega) s.omega_block.add(omega);
     }
+    (void)omega;
     if (++s.block_rows == block_length) {
       const AugmentedMatrix block = s.block.matrix();
       int index = 0;
-      for (int row = 0; row <= columns; ++row) {
-        for (int col = row; col <= columns; ++col, ++index) {
+      for (int row = 0; row < augmented_size; ++row) {
+        for (int col = row; col < augmented_size; ++col, ++index) {
           const Scalar carried = s.block_decay * s.total[index];
           const Scalar increment = block(row, col) - s.block_decay * s.compensation[index];
           const Scalar sum = carried + increment;
@@ -496,9 +811,9 @@ class SvfEstimator {
         }
       }
       s.block.reset();
-      if constexpr (Hysteresis) {
-        s.direction_total = (s.block_decay * s.direction_total + s.direction_block.matrix()).eval();
-        s.direction_block.reset();
+      if constexpr (with_omega) {
+        s.omega_total = (s.block_decay * s.omega_total + s.omega_block.matrix()).eval();
+        s.omega_block.reset();
       }
       s.block_decay = Scalar(1);
       s.block_rows = 0;
@@ -507,11 +822,11 @@ class SvfEstimator {
       if (forgetting_) {
         s.cross *= lambda;
         s.gram *= lambda;
-        s.basis_sum *= lambda;
+        s.extra_cross *= lambda;
       }
       s.cross.noalias() += z * s.basis.transpose();
       s.gram.noalias() += s.basis * s.basis.transpose();
-      s.basis_sum += s.basis;
+      s.extra_cross.noalias() += extra * s.basis.transpose();
       foh_.propagate(s.basis);
     } else if (forgetting_ && s.transient_decay > Scalar(0)) {
       s.transient_decay *= lambda;
@@ -524,11 +839,11 @@ class SvfEstimator {
     ++s.rows;
   }
 
-  static AugmentedMatrix moments(const State& s) noexcept {
+  static AugmentedMatrix augmented(const State& s) noexcept {
     AugmentedMatrix out = s.block.matrix();
     int index = 0;
-    for (int row = 0; row <= columns; ++row) {
-      for (int col = row; col <= columns; ++col, ++index) {
+    for (int row = 0; row < augmented_size; ++row) {
+      for (int col = row; col < augmented_size; ++col, ++index) {
         out(row, col) += s.block_decay * (s.total[index] - s.compensation[index]);
         out(col, row) = out(row, col);
       }
@@ -536,33 +851,122 @@ class SvfEstimator {
     return out;
   }
 
-  // Scatter of the full rows with the start-up transients (and, affine, the constant)
-  // projected out: S - Szb Sbb^+ Szb^T (working coordinates, solve precision).
-  SolveMatrix projected_scatter(const State& s) const noexcept {
+  static OmegaMatrix omega_moments(const State& s) noexcept {
+    return s.block_decay * s.omega_total + s.omega_block.matrix();
+  }
+
+  MomentVector moment_vector(const State& s) const noexcept {
+    using L = MomentLayout;
+    MomentVector out;
+    const AugmentedMatrix a = augmented(s);
+    int index = L::scatter;
+    for (int row = 0; row < augmented_size; ++row) {
+      for (int col = row; col < augmented_size; ++col) out[index++] = double(a(row, col));
+    }
+    const double decay = double(s.transient_decay);
+    index = L::cross;
+    for (int i = 0; i < columns; ++i) {
+      for (int j = 0; j < states; ++j) out[index++] = decay * double(s.cross(i, j));
+    }
+    index = L::extra_cross;
+    for (int i = 0; i < extras; ++i) {
+      for (int j = 0; j < states; ++j) out[index++] = decay * double(s.extra_cross(i, j));
+    }
+    index = L::gram;
+    for (int i = 0; i < states; ++i) {
+      for (int j = i; j < states; ++j) out[index++] = decay * double(s.gram(i, j));
+    }
+    index = L::omega;
+    if constexpr (Hysteresis || scheduled) {
+      const OmegaMatrix omega = omega_moments(s);
+      for (int i = 0; i < omega_dim; ++i) {
+        for (int j = i; j < omega_dim; ++j) out[index++] = double(omega(i, j));
+      }
+    } else {
+      out[index] = double(a(columns, columns));  // omega = [1]: the weighted row count
+    }
+    out[L::rows] = double(s.rows);
+    return out;
+  }
+
+  static Unpacked unpack(const MomentVector& m) noexcept {
+    using L = MomentLayout;
     using T = SolveScalar;
-    const Eigen::Matrix<T, columns + 1, columns + 1> a = moments(s).template cast<T>();
-    SolveMatrix scatter = a.template topLeftCorner<columns, columns>();
-    const SolveRow first = a.template topRightCorner<columns, 1>();
-    const T weight = a(columns, columns);
+    Unpacked u;
+    int index = L::scatter;
+    for (int row = 0; row < augmented_size; ++row) {
+      for (int col = row; col < augmented_size; ++col, ++index) {
+        u.a(row, col) = T(m[index]);
+        u.a(col, row) = u.a(row, col);
+      }
+    }
+    index = L::cross;
+    for (int i = 0; i < columns; ++i) {
+      for (int j = 0; j < states; ++j) u.cross(i, j) = T(m[index++]);
+    }
+    index = L::extra_cross;
+    for (int i = 0; i < extras; ++i) {
+      for (int j = 0; j < states; ++j) u.extra_cross(i, j) = T(m[index++]);
+    }
+    index = L::gram;
+    for (int i = 0; i < states; ++i) {
+      for (int j = i; j < states; ++j, ++index) {
+        u.gram(i, j) = T(m[index]);
+        u.gram(j, i) = u.gram(i, j);
+      }
+    }
+    index = L::omega;
+    for (int i = 0; i < omega_dim; ++i) {
+      for (int j = i; j < omega_dim; ++j, ++index) {
+        u.omega(i, j) = T(m[index]);
+        u.omega(j, i) = u.omega(i, j);
+      }
+    }
+    u.rows = T(m[L::rows]);
+    return u;
+  }
+
+  // Forgetting-weighted row count.
+  static SolveScalar row_weight(const Unpacked& u) noexcept {
+    if constexpr (scheduled) {
+      return u.omega(0, 0);
+    } else {
+      return u.a(columns, columns);
+    }
+  }
+
+  // Scatter of the full rows with the start-up transients (and, affine, the constant or the
+  // offset regressor) projected out: S - Szb Sbb^+ Szb^T (working coordinates, solve precision).
+  SolveMatrix projected_scatter(const Unpacked& u, Scalar offset1,
+                                Scalar offset2) const noexcept {
+    using T = SolveScalar;
+    SolveMatrix scatter = u.a.template topLeftCorner<columns, columns>();
+    const Eigen::Matrix<T, columns, extras> first = u.a.template topRightCorner<columns, extras>();
     Eigen::Matrix<T, columns, basis_size> cross = Eigen::Matrix<T, columns, basis_size>::Zero();
     Eigen::Matrix<T, basis_size, basis_size> gram =
         Eigen::Matrix<T, basis_size, basis_size>::Zero();
-    const T decay = T(s.transient_decay);
-    const Eigen::Matrix<T, states, 1> basis_sum = s.basis_sum.template cast<T>();
-    cross.template leftCols<states>() = decay * s.cross.template cast<T>();
-    gram.template topLeftCorner<states, states>() = decay * s.gram.template cast<T>();
+    cross.template leftCols<states>() = u.cross;
+    gram.template topLeftCorner<states, states>() = u.gram;
     if constexpr (affine) {
-      cross.col(states) = first;
-      gram.template block<states, 1>(0, states) = decay * basis_sum;
-      gram.template block<1, states>(states, 0) = decay * basis_sum.transpose();
-      gram(states, states) = weight;
+      // The constant (no schedule) or r = F(psi) joins the projected directions.
+      cross.col(states) = first.col(0);
+      gram.template block<states, 1>(0, states) = u.extra_cross.row(0).transpose();
+      gram.template block<1, states>(states, 0) = u.extra_cross.row(0);
+      gram(states, states) = u.a(columns, columns);
     } else {
-      // Unit model: the last column is x_0(T2) - x_0(T1) = centred + (T2(0) - T1(0)).
-      const T d = T(offset2_) - T(offset1_);
-      scatter.col(columns - 1) += d * first;
-      scatter.row(columns - 1) += d * first.transpose();
-      scatter(columns - 1, columns - 1) += d * d * weight;
-      cross.row(columns - 1) += d * decay * basis_sum.transpose();
+      // Unit model: static column j is centred + (T2(0) - T1(0)) e_j (e = 1 or r_j).
+      const T d = T(offset2) - T(offset1);
+      constexpr int first_static = columns - extras;
+      for (int j = 0; j < extras; ++j) scatter.col(first_static + j) += d * first.col(j);
+      for (int j = 0; j < extras; ++j) {
+        scatter.row(first_static + j) += d * first.col(j).transpose();
+      }
+      for (int i = 0; i < extras; ++i) {
+        for (int j = 0; j < extras; ++j) {
+          scatter(first_static + i, first_static + j) += d * d * u.a(columns + i, columns + j);
+        }
+      }
+      for (int j = 0; j < extras; ++j) cross.row(first_static + j) += d * u.extra_cross.row(j);
     }
     // Pseudo-inverse through the eigen-decomposition of the diagonally scaled Gram matrix:
     // equal to the inverse when it is regular, and a dropped transient (forgetting) or a
@@ -588,18 +992,39 @@ class SvfEstimator {
     return T(0.5) * (scatter + scatter.transpose());
   }
 
+  // Column a's noise: source column in the unsplit layout and its per-row weight
+  // omega[positive] - omega[negative] (negative < 0: none).
+  struct ColumnNoise {
+    int source;
+    int positive;
+    int negative;
+  };
+  static constexpr ColumnNoise column_noise(int col) noexcept {
+    if (col < dynamic_columns) {
+      if (Hysteresis) {  // H1, K1, H2, K2: weights h_i and 1 - h_i
+        const int sensor = col / 2;
+        return col % 2 == 0 ? ColumnNoise{sensor, 1 + sensor, -1}
+                            : ColumnNoise{sensor, 0, 1 + sensor};
+      }
+      // order 2: y_1 (odd positions) carries phi times the noise of x_2
+      return ColumnNoise{col, (Order == 2 && col % 2 == 1) ? 1 : 0, -1};
+    }
+    const int j = col - dynamic_columns;
+    return affine ? ColumnNoise{2 * Order + j, omega_basis, -1}
+                  : ColumnNoise{2 * Order, omega_basis + j, -1};
+  }
+
   // Noise covariance accumulated over the rows (sum of each row's covariance).
-  SolveMatrix accumulated_noise_covariance(const State& s, SolveScalar weight) const noexcept {
+  SolveMatrix noise_moment(const Unpacked& u, SolveScalar weight) const noexcept {
     using T = SolveScalar;
-    if constexpr (!Hysteresis) {
+    if constexpr (!Hysteresis && !scheduled) {
       return weight * noise_covariance_.template cast<T>();
-    } else {
+    } else if constexpr (!scheduled) {
       // Each split row spreads its sensor's x_1 noise as (h, 1 - h) over the heating and
       // cooling columns: entry (a, b) collects sum_rows w_a(h) w_b(h) C0[ca][cb] with the
       // linear weights w = alpha + beta h, i.e. from the moments of (1, h1, h2). Rows before
       // the first interval are counted like the others (weight / interval count).
-      const Eigen::Matrix<T, direction_dim, direction_dim> m =
-          (s.block_decay * s.direction_total + s.direction_block.matrix()).template cast<T>();
+      const Eigen::Matrix<T, omega_dim, omega_dim>& m = u.omega;
       const T intervals = m(0, 0);
       SolveMatrix c = SolveMatrix::Zero();
       if (!(intervals > T(0))) return c;
@@ -629,24 +1054,42 @@ class SvfEstimator {
         }
       }
       return c;
+    } else {
+      // C[a][b] = C0[src a][src b] sum_rows w_a w_b with w = omega[p] - omega[n].
+      (void)weight;
+      const Eigen::Matrix<T, omega_dim, omega_dim>& m = u.omega;
+      SolveMatrix c;
+      for (int a = 0; a < columns; ++a) {
+        const ColumnNoise na = column_noise(a);
+        for (int b = a; b < columns; ++b) {
+          const ColumnNoise nb = column_noise(b);
+          T weights = m(na.positive, nb.positive);
+          if (na.negative >= 0) weights -= m(na.negative, nb.positive);
+          if (nb.negative >= 0) weights -= m(na.positive, nb.negative);
+          if (na.negative >= 0 && nb.negative >= 0) weights += m(na.negative, nb.negative);
+          const T entry = weights * T(noise_covariance_(na.source, nb.source));
+          c(a, b) = entry;
+          c(b, a) = entry;
+        }
+      }
+      return c;
     }
   }
 
-  Result solve_state(const State& s) const noexcept {
+  Result solve_moments(const Unpacked& u, Scalar offset1, Scalar offset2) const noexcept {
     using T = SolveScalar;
     Result out;
-    const Eigen::Matrix<T, columns + 1, columns + 1> a = moments(s).template cast<T>();
-    const T weight = a(columns, columns);
+    const T weight = row_weight(u);
     out.rows = Scalar(weight);
     // Fewer rows than unknowns plus projected directions cannot determine theta.
-    if (s.rows < std::uint64_t(columns + basis_size)) {
+    if (!(u.rows >= T(columns + basis_size))) {
       out.status = Status::insufficient_excitation;
       return out;
     }
     // Back to the documented columns (exact enough in the solve precision), so that the
     // reference's diagonal scaling and regulariser act on the same coordinates.
-    const SolveMatrix scatter = documented(projected_scatter(s));
-    const SolveMatrix noise = documented(accumulated_noise_covariance(s, weight));
+    const SolveMatrix scatter = documented(projected_scatter(u, offset1, offset2));
+    const SolveMatrix noise = documented(noise_moment(u, weight));
     // GTLS as the reference: scale by diag(S)^-1/2, regularise C, whiten with C = L L^T.
     SolveRow scale;
     for (int i = 0; i < columns; ++i) {
@@ -700,29 +1143,30 @@ class SvfEstimator {
       return out;
     }
     out.theta = theta.template cast<Scalar>();
-    parameters(out, theta, a);
+    parameters(out, theta, u.a, offset1, offset2);
     return out;
   }
 
   // theta -> polynomials, time constants, gain ratio, offset; sets the status.
-  void parameters(Result& out, const SolveRow& theta,
-                  const Eigen::Matrix<SolveScalar, columns + 1, columns + 1>& a) const noexcept {
+  void parameters(Result& out, const SolveRow& theta, const SolveAugmented& a, Scalar offset1,
+                  Scalar offset2) const noexcept {
     using T = SolveScalar;
     const T tf = T(config_.filter_time_constant);
-    const int dynamic = Hysteresis ? 4 : 2 * Order;
-    const T gain = affine ? theta[dynamic] : T(1);
+    const T gain = affine ? theta[dynamic_columns] : T(1);
     out.gain_ratio = Scalar(gain);
     if constexpr (affine) {
-      // o = mean of theta . z over the rows, with the offsets that centring removed. In working
-      // coordinates theta = [dynamic, -g, g - 1] and the offsets are T2(0) - T1(0), -T1(0)
-      // (no difference of two ~400 K values).
+      // o = mean of theta . z over the rows (scheduled: its least-squares coefficient on r),
+      // with the offsets that centring removed. In working coordinates theta = [dynamic, -g,
+      // g - 1] and the offsets are T2(0) - T1(0), -T1(0) (no difference of two ~400 K values).
       SolveRow working = theta;
       working[columns - 2] = -gain;
       working[columns - 1] = gain - T(1);
       const T centred_mean =
           working.dot(a.template topRightCorner<columns, 1>()) / a(columns, columns);
-      out.offset = Scalar(centred_mean - gain * (T(offset2_) - T(offset1_)) -
-                          (gain - T(1)) * T(offset1_));
+      out.offset = Scalar(centred_mean - gain * (T(offset2) - T(offset1)) -
+                          (gain - T(1)) * T(offset1));
+    } else {
+      (void)a, (void)offset1, (void)offset2;
     }
     bool ok = gain > T(0) && std::isfinite(gain);
     if constexpr (Hysteresis) {
@@ -785,7 +1229,7 @@ class SvfEstimator {
   }
 
   State state_{};
-  std::array<std::array<Scalar, 2>, std::size_t(ring_size)> ring_{};
+  std::array<std::array<Scalar, ring_width>, std::size_t(ring_size)> ring_{};
   Config config_{};
   SvfCascade<Scalar, states> foh_{};
   SvfCascade<Scalar, states> zoh_{};
@@ -809,6 +1253,11 @@ template <typename Scalar, StaticModel Static = StaticModel::unit>
 using SvfSecondOrder = SvfEstimator<Scalar, 2, Static>;
 template <typename Scalar, StaticModel Static = StaticModel::unit, int MaxHalfWindow = 128>
 using SvfHysteresis = SvfEstimator<Scalar, 1, Static, true, MaxHalfWindow>;
+// Flow-scheduled variants (design.md 1.5).
+template <typename Scalar, int Order, int Basis = 1, StaticModel Static = StaticModel::unit>
+using SvfScheduled = SvfEstimator<Scalar, Order, Static, false, 128, double, Basis>;
+template <typename Scalar, StaticModel Static = StaticModel::unit, int MaxHalfWindow = 128>
+using SvfScheduledHysteresis = SvfEstimator<Scalar, 1, Static, true, MaxHalfWindow, double, 1>;
 
 // ECU budget (state, delay line and configuration; no heap).
 static_assert(sizeof(SvfFirstOrder<float>) <= 512, "first-order float SVF grew unexpectedly");
@@ -816,5 +1265,11 @@ static_assert(sizeof(SvfSecondOrder<float, StaticModel::affine>) <= 1024,
               "second-order float SVF grew unexpectedly");
 static_assert(sizeof(SvfHysteresis<float, StaticModel::affine>) <= 4096,
               "hysteresis float SVF (128-sample half window) grew unexpectedly");
+static_assert(sizeof(SvfScheduled<float, 1>) <= 512,
+              "first-order scheduled float SVF grew unexpectedly");
+static_assert(sizeof(SvfScheduled<float, 2>) <= 1024,
+              "second-order scheduled float SVF grew unexpectedly");
+static_assert(sizeof(SvfScheduledHysteresis<float, StaticModel::affine>) <= 4096,
+              "scheduled hysteresis float SVF (128-sample half window) grew unexpectedly");
 
 }  // namespace dualprobe
