@@ -229,6 +229,8 @@ void add_moments(py::dict& out, const Handle<S>& h) {
   out["moments"] = vector_array(h.moments(true));
   out["moment_layout"] = h.moment_layout();
   out["omega_moments"] = h.omega_moments();
+  out["scatter"] = h.scatter();
+  out["accumulated_noise_covariance"] = h.accumulated_noise_covariance();
   const auto o = h.offsets();
   out["offsets"] = py::make_tuple(o.first, o.second);
 }

@@ -178,7 +178,10 @@ class Model final : public Handle<S> {
       pybind11::gil_scoped_release release;
       r = estimator.solve(m, S(offset1), S(offset2));
     }
-    return result_dict(estimator, r);
+    pybind11::dict out = result_dict(estimator, r);
+    out["scatter"] = to_array(estimator.scatter(m, S(offset1), S(offset2)));
+    out["accumulated_noise_covariance"] = to_array(estimator.accumulated_noise_covariance(m));
+    return out;
   }
 
   pybind11::dict moment_layout() const override {

@@ -425,7 +425,15 @@ class SvfEstimator {
   }
   // The accumulated noise covariance that solve() hands to GTLS (documented order).
   Matrix accumulated_noise_covariance() const noexcept {
-    const Unpacked u = unpack(moments());
+    return accumulated_noise_covariance(moments());
+  }
+  // The same two for a moment vector (a total minus a block): what solve(m, ...) hands to
+  // GTLS, for sub-model solves of resampled moments.
+  Matrix scatter(const MomentVector& m, Scalar offset1, Scalar offset2) const noexcept {
+    return documented(projected_scatter(unpack(m), offset1, offset2)).template cast<Scalar>();
+  }
+  Matrix accumulated_noise_covariance(const MomentVector& m) const noexcept {
+    const Unpacked u = unpack(m);
     return documented(noise_moment(u, row_weight(u))).template cast<Scalar>();
   }
 
