@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from dualprobe.estimation.pair import METHODS, characterise_pair
 from dualprobe.estimation.result import PairEstimate
-from dualprobe.estimation.svf import GAP_THRESHOLD, discretisation_noise_std
+from dualprobe.estimation.settings import GAP_THRESHOLD, discretisation_noise_std
 
 __all__ = [
     "GAP_THRESHOLD",

@@ -1,8 +1,8 @@
 """The noise-robust default of ``characterise_pair``: ``method="auto" | "svf"``.
 
-It runs the state-variable-filter (SVF) cross-relation estimator (design.md 1.4; the
-computations in :mod:`dualprobe.estimation.svf_backend`, the maths and measurements in the
-docstring of :mod:`dualprobe.reference.svf`) with
+It runs the state-variable-filter (SVF) cross-relation estimator (design.md 1.4-1.5) of the
+compiled core (:mod:`dualprobe.estimation.engine`; the independent check and its docstring's
+measurements: :mod:`dualprobe.reference.svf`), optionally scheduled by the gas flow, with
 
 * the noise level of each sensor estimated from its own signal
   (:func:`dualprobe.models.noise.estimate_noise_std`) unless given, and floored at 1e-6 of the
@@ -37,18 +37,21 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-import scipy.ndimage
 
+from dualprobe.estimation import engine
+from dualprobe.estimation.engine import Fit
+from dualprobe.estimation.orders import resolved, sensor_order_fits
 from dualprobe.estimation.result import PairEstimate
-from dualprobe.estimation.svf_backend import (
-    SvfResult,
-    effective_samples,
-    estimate_or_none,
-    fast_time_constant,
-    sensor_order_fits,
+from dualprobe.estimation.settings import (
+    DIRECTION_TOLERANCE,
+    GAP_THRESHOLD,
+    KAPPA,
+    RESOLUTION_FLOOR,
+    choose_filter_time_constant,
+    discretisation_noise_std,
+    gap_statistics,
 )
 
 __all__ = [
@@ -60,121 +63,6 @@ __all__ = [
     "choose_filter_time_constant",
     "discretisation_noise_std",
 ]
-
-
-# An eigenvalue counts as "noise only" when its excess over the noise band is below this many
-# standard deviations of the noise-only spread: exact common factors gave 0-2.5 (25 simulated
-# records, 10-100 Hz, 0.01-0.1 K); distinct poles 0.17 s / 0.19 s at 100 Hz, 0.01 K gave
-# >= 160 (and were estimated to 2 %).
-GAP_THRESHOLD = 10.0
-KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
-RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std
-DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification
-
-
-_KINK_MEDIAN_WINDOW = 11  # running median of the second differences: kinks are 2 samples wide
-_KINK_THRESHOLD = 8.0  # kink spikes: beyond 8 noise standard deviations of a second difference
-
-
-def discretisation_noise_std(x: np.ndarray, noise_std: float = 0.0) -> float:
-    """White noise equivalent to the first-order-hold error at the kinks of a sampled signal.
-
-    The SVF sees the straight-line interpolation of the samples. On smooth stretches its error
-    acts as the common operator ``1 - (Ts s)^2/12`` on both sensors and cancels from the
-    cross-relation; at a kink (slope jump D, a gas step seen by a first-order sensor) it leaves
-    an impulse of area up to ``Ts^2 D / 12``. The kink shows as a spike of about ``Ts D`` in the
-    second differences above their running median (``r``), so the impulses' energy ``sum A^2``
-    equals that of white noise of variance ``sum r^2 / (144 N)`` over the N samples. Only
-    spikes above 8 noise standard deviations count (below, the noise hides them). Measured on
-    the paper's noise-free study A (Ts = 0.1 s, 100 K step on the grid): 1.5e-3 K for the
-    first-order sensor, where the fits' residuals then sit at 0.001-0.6 of this noise band.
-    """
-    d = np.diff(np.asarray(x, dtype=float), 2)
-    if d.size < _KINK_MEDIAN_WINDOW:
-        return 0.0
-    spikes = d - scipy.ndimage.median_filter(d, size=_KINK_MEDIAN_WINDOW, mode="nearest")
-    spikes = spikes[np.abs(spikes) > _KINK_THRESHOLD * math.sqrt(6.0) * noise_std]
-    return math.sqrt(float(np.sum(spikes * spikes)) / (144.0 * (d.size + 2)))
-
-
-def choose_filter_time_constant(
-    t1: np.ndarray,
-    t2: np.ndarray,
-    ts: float,
-    order: int,
-    sigma: tuple[float, float],
-    static: str = "affine",
-) -> tuple[float, list[float]]:
-    """Filter time constant from the data: ``tf = kappa * tau_fast`` at its fixed point.
-
-    A geometric scan (factor 4) from 2 Ts to a tenth of the record gives first-order fits
-    (``static`` model; affine by default so that a gain mismatch cannot mislead the scan);
-    the scan point closest to its own fixed point starts up to four refinement steps.
-    Returns (tf, the tf values visited after the scan).
-    """
-    kappa = KAPPA[order]
-    duration = (t1.size - 1) * ts
-    tf_min = ts
-    tf_max = max(tf_min, duration / 10.0)
-    grid = [2.0 * ts * 4.0**j for j in range(64) if 2.0 * ts * 4.0**j <= tf_max] or [tf_max]
-
-    def fast_at(tf: float) -> float:
-        res = estimate_or_none(t1, t2, ts, tf=tf, order=1, sigma1=sigma[0], sigma2=sigma[1],
-                             static=static, diagnostics=False)
-        return fast_time_constant(res)
-
-    best: tuple[float, float] | None = None  # (log mismatch, tf)
-    for tf in grid:
-        fast = fast_at(tf)
-        if math.isfinite(fast):
-            mismatch = abs(math.log(tf / (kappa * fast)))
-            if best is None or mismatch < best[0]:
-                best = (mismatch, tf)
-    if best is None:
-        return grid[len(grid) // 2], []
-    tf = best[1]
-    history = [tf]
-    for _ in range(4):
-        fast = fast_at(tf)
-        if not math.isfinite(fast):
-            break
-        new = min(max(kappa * fast, tf_min), tf_max)
-        history.append(new)
-        converged = abs(new / tf - 1.0) < 0.05
-        tf = new
-        if converged:
-            break
-    return tf, history
-
-
-def _gap_statistics(mu: np.ndarray, n_eff: float) -> np.ndarray:
-    """Excess of each generalised eigenvalue over the noise band, in noise standard deviations.
-
-    The band sits at mu = 1 when the noise model is right; a larger smallest eigenvalue
-    (model error) raises it, a smaller one (noise overestimated, e.g. the resolution floor
-    on exact data) does not lower it.
-    """
-    mu = np.asarray(mu, dtype=float)
-    reference = max(float(mu[0]), 1.0)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        gaps = (mu / reference - 1.0) * math.sqrt(n_eff / 2.0)
-    gaps = np.where(np.isfinite(gaps), gaps, np.inf)
-    gaps[0] = 0.0
-    return gaps
-
-
-def _resolved(taus: tuple[float, ...], poly: tuple[float, ...]) -> tuple[tuple[float, ...], str]:
-    """Time constants of one sensor's polynomial, with a note when only part is resolved."""
-    if all(math.isfinite(t) and t > 0.0 for t in taus):
-        return taus, ""
-    c = poly[0]
-    if len(poly) == 2 and math.isfinite(c) and c > 0.0:
-        d = poly[1]
-        if d <= 0.0:
-            return (c,), "second time constant below resolution (first-order response)"
-        if c * c < 4.0 * d:
-            return (0.5 * c, 0.5 * c), "complex pole pair: reported as a double pole"
-    return taus, "no positive real time constants"
 
 
 def _beta(taus: tuple[tuple[float, ...], tuple[float, ...]], ts: float) -> float | None:
@@ -198,13 +86,15 @@ class _SvfRun:
     static: str
     details: dict[str, object]
     tf: float = float("nan")
+    schedule: np.ndarray | None = None  # psi per sample (time constants scale as 1/psi)
 
-    def fit(self, order: int, static: str, hysteresis: bool) -> SvfResult | None:
-        kwargs: dict[str, Any] = {"tf": self.tf, "order": order, "sigma1": self.sigma[0],
-                                  "sigma2": self.sigma[1], "static": static}
-        if hysteresis:
-            kwargs.update(hysteresis=True, direction_tolerance=DIRECTION_TOLERANCE)
-        return estimate_or_none(self.t1, self.t2, self.ts, **kwargs)
+    def fit(self, order: int, static: str, hysteresis: bool, tf: float | None = None
+            ) -> Fit | None:
+        if self.schedule is not None and static == "affine" and self.schedule.ndim > 1:
+            return None  # a basis of several schedules takes the unit static model only
+        return engine.fit(self.t1, self.t2, self.ts, tf=self.tf if tf is None else tf,
+                          order=order, static=static, hysteresis=hysteresis, sigma=self.sigma,
+                          schedule=self.schedule)
 
     def failed(self, status: str, message: str,
                identifiability: dict[str, object] | None = None) -> PairEstimate:
@@ -232,8 +122,8 @@ class _SvfRun:
                 "temperature changes"
             return self.failed("insufficient_excitation",
                                f"the signals do not excite the model (need {need})")
-        n_eff = effective_samples(res, self.ts, self.sigma, static)
-        gaps = _gap_statistics(res.eigenvalues, n_eff)
+        n_eff = engine.effective_samples(res)
+        gaps = gap_statistics(res.eigenvalues, n_eff)
         k = int(np.count_nonzero(gaps < GAP_THRESHOLD))
         mu = np.asarray(res.eigenvalues, dtype=float)
         self.details.update(
@@ -242,10 +132,9 @@ class _SvfRun:
             residual_to_noise=float(mu[0]),
         )
         if static == "affine":
-            self.details.update(gain_ratio=res.extra["gain_ratio"], offset=res.extra["offset"])
+            self.details.update(gain_ratio=res.gain_ratio, offset=res.offset)
         if self.hysteresis:
-            self.details["direction_half_windows"] = list(
-                res.extra["direction_half_windows"])  # type: ignore[call-overload]
+            self.details["direction_half_windows"] = list(res.windows)
         identifiability: dict[str, object] = {
             "identifiable": k == 1,
             "null_dimension": k,
@@ -266,8 +155,8 @@ class _SvfRun:
             return self.reduced(res, static, k, identifiability)
         return self.finish(res, self.order, identifiability)
 
-    def select_sensor_orders(self, res: SvfResult, static: str, n_eff: float,
-                             identifiability: dict[str, object]) -> SvfResult | None:
+    def select_sensor_orders(self, res: Fit, static: str, n_eff: float,
+                             identifiability: dict[str, object]) -> Fit | None:
         """Drop a sensor's second-order coefficient d_i when the data do not need it.
 
         A sensor whose second time constant is ~0 (a first-order sensor, or one far below
@@ -288,8 +177,8 @@ class _SvfRun:
         """
         degenerate = int(identifiability["null_dimension"]) > 1  # type: ignore[call-overload]
         try:
-            fits = sensor_order_fits(self.t1, self.t2, self.ts, self.tf, self.sigma, static)
-        except (np.linalg.LinAlgError, ValueError):  # as estimate_or_none: no usable scatter
+            fits = sensor_order_fits(res)
+        except (np.linalg.LinAlgError, ValueError):  # no usable sub-scatter
             return None if degenerate else res
         full = fits[(2, 2)]
         reference = max(full.mu, 1.0)
@@ -303,7 +192,7 @@ class _SvfRun:
         for key in sorted(((1, 2), (2, 1)), key=lambda key: statistics[key]):
             if not (statistics[key] < GAP_THRESHOLD and fits[key].feasible):
                 continue
-            if degenerate and _gap_statistics(fits[key].eigenvalues, n_eff)[1] < GAP_THRESHOLD:
+            if degenerate and gap_statistics(fits[key].eigenvalues, n_eff)[1] < GAP_THRESHOLD:
                 continue  # the sub-model is degenerate too
             chosen = key
             break
@@ -339,9 +228,12 @@ class _SvfRun:
             polynomials=fit.polynomials, eigenvalues=fit.eigenvalues,
         )
 
-    def select_static(self) -> tuple[SvfResult | None, str]:
-        """Fit the unit-gain model and, for "auto", the affine one; keep the affine model only
-        when it explains significantly more (gain or offset mismatch between the sensors)."""
+    def select_static(self) -> tuple[Fit | None, str]:
+        """Fit the unit-gain model and, for "auto", the affine one; keep the affine model when
+        it explains significantly more (gain or offset mismatch between the sensors), or when
+        only it gives plausible time constants: a second-order unit model can mimic a gain
+        mismatch with a pole far longer than the record (1e8 s measured for gains 0.97/1.03)
+        and then fits almost as well."""
         if self.static != "auto":
             return self.fit(self.order, self.static, self.hysteresis), self.static
         unit = self.fit(self.order, "unit", self.hysteresis)
@@ -350,32 +242,76 @@ class _SvfRun:
             return unit, "unit"
         if unit is None:
             return affine, "affine"
-        n_eff = effective_samples(unit, self.ts, self.sigma, "unit")
+        n_eff = engine.effective_samples(unit)
         gain = (float(unit.eigenvalues[0]) / max(float(affine.eigenvalues[0]), 1.0) - 1.0)
         statistic = gain * math.sqrt(n_eff / 2.0)
         self.details["static_model_statistic"] = statistic
+        duration = (self.t1.size - 1) * self.ts
+        if not self._plausible(unit, duration / 3.0) and self._plausible(affine, duration / 3.0):
+            # the affine model fits at least as well (it contains the unit one)
+            self.details["static_model_reason"] = "the unit model's time constants are implausible"
+            return affine, "affine"
+        if self._mimics_offset(unit):
+            self.details["static_model_reason"] = (
+                "the unit model stands in slow poles for an offset between the sensors")
+            return affine, "affine"
         return (affine, "affine") if statistic > GAP_THRESHOLD else (unit, "unit")
 
-    def finish(self, res: SvfResult, order: int,
+    def _mimics_offset(self, unit: Fit) -> bool:
+        """In order 2 the unit model can explain a constant offset between the sensors by a
+        slow pole per sensor and fit as well as the affine model (0.1 K on +-1 K steps, 10
+        min: 56-326 s instead of 5 s). The first-order pair cannot (its unit model misfits by
+        41-60 noise standard deviations there, at its own filter time constant): the offset is
+        decided on its own (the same ``GAP_THRESHOLD`` test, when the affine first-order pair
+        explains the data). Choosing the affine model for sensors that need none costs
+        variance, not bias."""
+        if unit.order < 2:
+            return False
+        tf = self.tf * KAPPA[1] / KAPPA[unit.order]  # the first-order pair's own filter
+        low_unit = self.fit(1, "unit", self.hysteresis, tf)
+        low_affine = self.fit(1, "affine", self.hysteresis, tf)
+        if low_unit is None or low_affine is None:
+            return False
+        n_eff = engine.effective_samples(low_unit)
+        ratio = float(low_unit.eigenvalues[0]) / max(float(low_affine.eigenvalues[0]), 1.0)
+        statistic = (ratio - 1.0) * math.sqrt(n_eff / 2.0)
+        # the affine first-order pair must also explain the data: where it does not (sensors
+        # of higher order) an offset is no more likely than any other way to reduce the misfit
+        misfit = (float(low_affine.eigenvalues[0]) - 1.0) * math.sqrt(n_eff / 2.0)
+        self.details["first_order_static_statistic"] = statistic
+        # and practically significant: the static mismatch it finds moves sensor 2 by more
+        # than 0.1 % of the temperature range (0.1 K offset on +-1 K: 5 %; the paper's exact
+        # study A, where the statistic reaches 13 on the discretisation floor: 4e-5)
+        shift = (low_affine.gain_ratio - 1.0) * self.t2 + low_affine.offset
+        practical = math.sqrt(float(np.mean(shift * shift))) > 1e-3 * float(np.ptp(self.t1))
+        return statistic > GAP_THRESHOLD and misfit < GAP_THRESHOLD and practical
+
+    @staticmethod
+    def _plausible(fit: Fit, limit: float) -> bool:
+        """No time constant longer than ``limit``, a third of the record, beyond which the
+        result is refused (complex or negative ones are the order selection's business)."""
+        taus = [t for sensor in fit.time_constants for t in sensor]
+        return all(t < limit for t in taus if math.isfinite(t))
+
+    def finish(self, res: Fit, order: int,
                identifiability: dict[str, object]) -> PairEstimate:
-        if "heat" in res.extra:
-            heat = res.extra["heat"]
-            cool = res.extra["cool"]
-            values = [heat[0][0], cool[0][0], heat[1][0], cool[1][0]]  # type: ignore[index]
+        self.details["fit"] = res
+        if res.hysteresis and res.heat is not None and res.cool is not None:
+            heat, cool = res.heat, res.cool
+            values = [heat[0][0], cool[0][0], heat[1][0], cool[1][0]]
             if res.status != "ok" or not all(math.isfinite(v) and v > 0.0 for v in values):
                 return self.failed("infeasible", "no positive heating/cooling time constants "
                                    "fit these signals", identifiability)
             return PairEstimate(
                 status="ok", method="svf", order=1, sample_interval=self.ts,
                 time_constants=res.time_constants, beta=_beta(res.time_constants, self.ts),
-                noise_std=self.sigma, time_constants_heat=heat,  # type: ignore[arg-type]
-                time_constants_cool=cool,  # type: ignore[arg-type]
+                noise_std=self.sigma, time_constants_heat=heat, time_constants_cool=cool,
                 identifiability=identifiability, details=self.details,
             )
         notes = []
         taus = []
         for i in range(2):
-            t, note = _resolved(res.time_constants[i], res.polynomials[i])
+            t, note = resolved(res.time_constants[i], res.polynomials[i])
             if note == "no positive real time constants":
                 return self.failed("infeasible", f"sensor {i + 1}: {note} fit these signals "
                                    "(check the columns)", identifiability)
@@ -391,7 +327,7 @@ class _SvfRun:
             identifiability=identifiability, details=self.details,
         )
 
-    def reduced(self, res: SvfResult, static: str, k: int,
+    def reduced(self, res: Fit, static: str, k: int,
                 identifiability: dict[str, object]) -> PairEstimate:
         """k-dimensional near-null space: report what the data do determine."""
         if self.hysteresis:
@@ -443,10 +379,12 @@ def characterise_svf(
     sigma_source: str,
     tf: float | None,
     static: str,
+    schedule: np.ndarray | None = None,
 ) -> PairEstimate:
     """The SVF characterisation (module docstring) of checked signals with the noise levels
     ``sigma`` (given or estimated: ``sigma_source``); ``tf`` None chooses the filter time
-    constant, ``static`` is auto | unit | affine."""
+    constant, ``static`` is auto | unit | affine; ``schedule`` psi (N,) scales the time
+    constants as 1/psi (design.md 1.5)."""
     details: dict[str, object] = {"noise_std_source": sigma_source}
     # Resolution floor: nothing below a part per million of a signal's variation is resolved
     # (rounding errors of exact data sit there), nor below the discretisation error at the
@@ -459,5 +397,16 @@ def characterise_svf(
     used = (max(sigma[0], floor[0]), max(sigma[1], floor[1]))
     if used != sigma:
         details["noise_std_used"] = used
-    result = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details).run(tf)
+    run = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details, schedule=schedule)
+    result = run.run(tf)
+    if static == "auto" and result.status == "infeasible" and details.get("static_model") == "unit":
+        # the unit model fitted as well but leads nowhere: a gain mismatch mimicked by poles
+        retry = _SvfRun(t1, t2, ts, order, hysteresis, used, "affine",
+                        {"noise_std_source": sigma_source, **({"noise_std_used": used}
+                                                              if used != sigma else {})},
+                        schedule=schedule).run(tf)
+        if retry.status == "ok":
+            retry.details["static_model_reason"] = (
+                "the unit model gave no physical time constants; the affine one does")
+            result = retry
     return dataclasses.replace(result, noise_std=sigma)
