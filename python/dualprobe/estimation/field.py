@@ -1,0 +1,188 @@
+"""Field conditions on top of the SVF characterisation: a flow law, or tracked time constants.
+
+:func:`flow_law` chooses between constant time constants, the power law of paper eq. 1 and a
+free monotone curve of the flow (:mod:`dualprobe.estimation.flow`), each by evidence; the sensor
+orders and the static model are chosen again with the winning schedule, and the exponent is
+refined for them. :func:`track_without_flow` tracks a common factor of both time constants over
+the record when there is no flow signal (:mod:`dualprobe.estimation.tracking`), but only when
+the constant model leaves a significant misfit that tracking removes. Either way the result is a
+schedule psi per sample (time constants ``tau / psi``) that the final SVF fit, the uncertainty
+and the reconstruction use.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dualprobe.estimation import engine, flow, tracking
+from dualprobe.estimation.engine import Fit
+from dualprobe.estimation.result import PairEstimate
+from dualprobe.estimation.settings import GAP_THRESHOLD
+
+__all__ = ["FlowModel", "flow_law", "track_without_flow"]
+
+# run the SVF characterisation (orders, static model, identifiability) with a schedule psi
+RunSvf = Callable[[np.ndarray | None], PairEstimate]
+
+_REFINE = np.linspace(-0.1, 0.1, 9)  # exponent re-search around the first estimate
+
+
+@dataclass(frozen=True)
+class FlowModel:
+    """How the time constants vary: ``kind`` constant | power_law | curve | tracked; ``psi``
+    (N,) the schedule per sample (time constants ``tau / psi``; 1 at the reference flow, or on
+    average when tracked); ``exponent`` m of the power law (its estimate also for kind curve; 0
+    for constant); ``curve`` for kind curve; ``evidence`` the statistics behind the choice."""
+
+    kind: str
+    psi: np.ndarray
+    column: str | None = None
+    exponent: float = 0.0
+    exponent_std: float = math.nan
+    reference_flow: float | None = None
+    flow_range: tuple[float, float] | None = None
+    curve: flow.FlowCurve | None = None
+    evidence: dict[str, float] = field(default_factory=dict)
+    profile: tuple[np.ndarray, np.ndarray] | None = None
+    tracking: tracking.Tracking | None = None
+
+    @property
+    def scheduled(self) -> bool:
+        return self.kind != "constant"
+
+
+def _fit_of(estimate: PairEstimate) -> Fit:
+    fit = estimate.details.get("fit")
+    if not isinstance(fit, Fit):
+        raise ValueError("field: the estimate carries no SVF fit")
+    return fit
+
+
+def _effective_rows(estimate: PairEstimate) -> float:
+    value = estimate.details.get("effective_samples")
+    return float(value) if isinstance(value, (int, float)) else float(_fit_of(estimate).rows)
+
+
+def exponent_misfit(t1: np.ndarray, t2: np.ndarray, like: Fit, signal: flow.FlowSignal,
+                    ) -> Callable[[float], float]:
+    """mu(m): the smallest generalised eigenvalue of ``like``'s model scheduled by
+    ``(v/v_ref)^m``."""
+
+    def misfit(m: float) -> float:
+        res = engine.fit(t1, t2, like.ts, tf=like.tf, order=like.order, static=like.static,
+                         hysteresis=like.hysteresis, sigma=like.sigma,
+                         schedule=signal.psi(m), windows=like.windows or None)
+        return math.inf if res is None else res.misfit
+
+    return misfit
+
+
+def flow_law(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    base: PairEstimate,
+    signal: flow.FlowSignal,
+    run: RunSvf,
+) -> tuple[PairEstimate, FlowModel]:
+    """Choose the flow law (module docstring) starting from ``base``, the constant-schedule
+    characterisation; ``run(psi)`` repeats the characterisation with a schedule."""
+    base_fit = _fit_of(base)
+    n_eff = _effective_rows(base)
+    m, profile = flow.search_exponent(exponent_misfit(t1, t2, base_fit, signal))
+    stats: dict[str, float] = {"effective_rows": n_eff, "misfit_constant": base_fit.misfit}
+    constant = FlowModel("constant", np.ones(t1.size), signal.column, 0.0, math.nan,
+                         signal.reference, signal.span, evidence=stats,
+                         profile=(flow.EXPONENT_GRID, profile))
+    if not math.isfinite(m):
+        return base, constant
+    mu_power = exponent_misfit(t1, t2, base_fit, signal)(m)
+    stats.update(misfit_power_law=mu_power, exponent_first=m,
+                 power_law_statistic=flow.evidence(base_fit.misfit, mu_power, n_eff),
+                 power_law_change=signal.change(m))
+    if not (stats["power_law_statistic"] > GAP_THRESHOLD
+            and stats["power_law_change"] > flow.PRACTICAL_CHANGE):
+        return base, constant
+    estimate = run(signal.psi(m))
+    if estimate.status != "ok":
+        return base, constant
+    # refine the exponent for the orders and static model chosen with the schedule
+    fit = _fit_of(estimate)
+    grid = m + _REFINE
+    m, _ = flow.search_exponent(exponent_misfit(t1, t2, fit, signal), grid=grid)
+    estimate = run(signal.psi(m))
+    if estimate.status != "ok":
+        return base, constant
+    fit = _fit_of(estimate)
+    stats.update(exponent=m, misfit_power_law=fit.misfit)
+    model = FlowModel("power_law", signal.psi(m), signal.column, m, math.nan, signal.reference,
+                      signal.span, evidence=stats, profile=(flow.EXPONENT_GRID, profile))
+    curved = _curve(t1, t2, estimate, signal, model, run)
+    return curved if curved is not None else (estimate, model)
+
+
+def _curve(
+    t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, signal: flow.FlowSignal,
+    power: FlowModel, run: RunSvf,
+) -> tuple[PairEstimate, FlowModel] | None:
+    """The free monotone curve, kept when it explains significantly more than the power law
+    and departs from it by more than ``PRACTICAL_CHANGE`` somewhere in the flow range."""
+    fit = _fit_of(estimate)
+    if fit.hysteresis:
+        return None  # a curve and a heating/cooling split together: not identifiable enough
+    knots, weights = flow.curve_basis(signal)
+    u2 = fit.gain_ratio * np.asarray(t2, dtype=float) + (fit.offset if fit.static == "affine"
+                                                          else 0.0)
+    sigma = (fit.sigma[0], abs(fit.gain_ratio) * fit.sigma[1])
+    res = engine.fit(t1, u2, fit.ts, tf=fit.tf, order=fit.order, static="unit", sigma=sigma,
+                     schedule=weights, phi=1.0 / power.psi)
+    if res is None:
+        return None
+    curve = flow.curve_from_theta(res.theta, knots, signal.reference)
+    n_eff = _effective_rows(estimate)
+    statistic = flow.evidence(fit.misfit, res.misfit, n_eff)
+    # largest departure from the power law at the knots (where the curve is informed)
+    departure = float(np.max(np.abs(
+        curve.values / (knots / signal.reference) ** power.exponent - 1.0)))
+    stats = dict(power.evidence, misfit_curve=res.misfit, curve_statistic=statistic,
+                 curve_departure=departure)
+    if not (statistic > GAP_THRESHOLD and departure > flow.PRACTICAL_CHANGE
+            and curve.monotone and np.all(np.isfinite(curve.values))):
+        return None
+    psi = curve.psi(signal.values)
+    curved = run(psi)
+    if curved.status != "ok":
+        return None
+    return curved, FlowModel("curve", psi, signal.column, power.exponent, math.nan,
+                             signal.reference, signal.span, curve, stats, power.profile)
+
+
+def track_without_flow(
+    t1: np.ndarray, t2: np.ndarray, base: PairEstimate, run: RunSvf,
+) -> tuple[PairEstimate, FlowModel]:
+    """Tracked time constants when the constant model misfits and tracking removes the misfit
+    (both by ``GAP_THRESHOLD``, and psi varying by more than 5 %); else the base unchanged."""
+    base_fit = _fit_of(base)
+    n_eff = _effective_rows(base)
+    stats: dict[str, float] = {"effective_rows": n_eff, "misfit_constant": base_fit.misfit}
+    constant = FlowModel("constant", np.ones(t1.size), evidence=stats)
+    if flow.evidence(base_fit.misfit, 1.0, n_eff) <= GAP_THRESHOLD or base_fit.hysteresis:
+        return base, constant
+    static = (base_fit.gain_ratio, base_fit.offset) if base_fit.static == "affine" else (1.0, 0.0)
+    try:
+        tracked = tracking.track(t1, t2, base_fit.ts, tf=base_fit.tf, order=1,
+                                 sigma=base_fit.sigma, effective_rows=n_eff, static=static)
+    except tracking.TrackingError:
+        return base, constant
+    statistic = flow.evidence(base_fit.misfit, tracked.misfit, n_eff)
+    stats.update(misfit_tracked=tracked.misfit, tracking_statistic=statistic,
+                 tracking_variation=tracked.variation, knot_spacing=float(tracked.spacing))
+    if not (statistic > GAP_THRESHOLD and tracked.variation > flow.PRACTICAL_CHANGE):
+        return base, FlowModel("constant", np.ones(t1.size), evidence=stats)
+    estimate = run(tracked.psi)
+    if estimate.status != "ok":
+        return base, FlowModel("constant", np.ones(t1.size), evidence=stats)
+    return estimate, FlowModel("tracked", tracked.psi, evidence=stats, tracking=tracked)
