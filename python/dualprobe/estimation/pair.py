@@ -5,22 +5,28 @@ the noise levels unless given, and runs the SVF (:mod:`dualprobe.estimation.svf`
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 
 import numpy as np
 
+from dualprobe.estimation.confidence import confidence
 from dualprobe.estimation.difference import characterise_difference
+from dualprobe.estimation.engine import STATIC_MODELS
+from dualprobe.estimation.field import FlowModel, flow_law, track_without_flow
+from dualprobe.estimation.flow import check_flow, evidence
 from dualprobe.estimation.result import PairEstimate
+from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.estimation.svf import characterise_svf
-from dualprobe.estimation.svf_backend import STATIC_MODELS
 from dualprobe.io import InputError
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
-__all__ = ["METHODS", "characterise_pair"]
+__all__ = ["METHODS", "TRACKING", "characterise_pair"]
 
 
 METHODS = ("auto", "svf", "ls", "tls", "gtls")
+TRACKING = ("auto", "off")
 _MIN_SAMPLES = 20
 
 
@@ -72,6 +78,41 @@ def _noise_levels(
     return (float(values[0]), float(values[1])), "given"
 
 
+PRACTICAL_HYSTERESIS = 0.05  # heating and cooling time constants must differ by >= 5 %
+
+
+def _hysteresis_beyond_flow(split: PairEstimate, unsplit: PairEstimate) -> PairEstimate:
+    """Keep the heating/cooling split only when it explains significantly more than the same
+    flow law without it and the time constants differ in practice: with the gas heating at
+    high load (high flow, short time constants) and cooling at low load, flow dependence looks
+    like hysteresis to a model without the flow."""
+    if unsplit.status != "ok" or split.time_constants_heat is None:
+        return split
+    heat, cool = split.time_constants_heat, split.time_constants_cool
+    assert cool is not None
+    differ = max(abs(heat[i][0] / cool[i][0] - 1.0) for i in range(2))
+    n_eff = float(unsplit.details.get("effective_samples", 0.0))  # type: ignore[arg-type]
+    statistic = evidence(float(unsplit.details["residual_to_noise"]),  # type: ignore[arg-type]
+                         float(split.details["residual_to_noise"]), n_eff)  # type: ignore[arg-type]
+    if statistic > GAP_THRESHOLD and differ > PRACTICAL_HYSTERESIS:
+        split.details["hysteresis_statistic"] = statistic
+        return split
+    notes = list(unsplit.identifiability.get("notes", []))  # type: ignore[call-overload]
+    notes.append(f"no heating/cooling difference beyond the flow dependence (statistic "
+                 f"{statistic:.3g} < {GAP_THRESHOLD:g} or time constants within "
+                 f"{PRACTICAL_HYSTERESIS:.0%}): reported without hysteresis")
+    unsplit.identifiability["notes"] = notes
+    unsplit.details["hysteresis_statistic"] = statistic
+    return unsplit
+
+
+def _misfits(estimate: PairEstimate) -> bool:
+    """The estimate's misfit lies beyond ``GAP_THRESHOLD`` noise standard deviations."""
+    mu = float(estimate.details.get("residual_to_noise", 1.0))  # type: ignore[arg-type]
+    n_eff = float(estimate.details.get("effective_samples", 0.0))  # type: ignore[arg-type]
+    return evidence(mu, 1.0, n_eff) > GAP_THRESHOLD
+
+
 def characterise_pair(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -83,6 +124,10 @@ def characterise_pair(
     noise_std: float | Sequence[float] | None = None,
     filter_time_constant: float | None = None,
     static_model: str = "auto",
+    flow: np.ndarray | None = None,
+    flow_column: str | None = None,
+    track: str = "off",
+    uncertainty: bool = False,
 ) -> PairEstimate:
     """Identify the two sensors' time constants from their signals alone.
 
@@ -93,8 +138,14 @@ def characterise_pair(
     seconds (None: automatic). ``static_model`` (SVF): "unit" (both sensors of unit static
     gain, design.md 1.4), "affine" (a gain ratio and an offset between the sensors are
     estimated too; reported in ``details``) or "auto" (affine only when it fits significantly
-    better). Raises ValueError (dualprobe.io.InputError) for bad arguments;
-    estimation failures are reported in ``status`` with ``details["message"]``.
+    better). ``flow`` (N,): a positive flow-like signal; the time constants then follow a flow
+    law chosen by evidence (constant, power law or curve: :mod:`dualprobe.estimation.field`),
+    at the median flow in ``time_constants``. ``track="auto"``: without a flow, track a common
+    time variation of both time constants when the constant model misfits and tracking
+    explains it. ``uncertainty``: standard uncertainties and identifiability
+    (:mod:`dualprobe.estimation.confidence`) in ``confidence``. Raises ValueError
+    (dualprobe.io.InputError) for bad arguments; estimation failures are reported in
+    ``status`` with ``details["message"]``.
     """
     a, b, ts = _check_inputs(t1, t2, ts, method, order, hysteresis)
     if filter_time_constant is not None and not (
@@ -115,5 +166,44 @@ def characterise_pair(
     if static_model not in ("auto", *STATIC_MODELS):
         raise InputError(f"characterise_pair: static_model must be auto, unit or affine, "
                          f"got {static_model!r}")
-    return characterise_svf(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
-                         static_model)
+    if track not in TRACKING:
+        raise InputError(f"characterise_pair: track must be one of {', '.join(TRACKING)}, "
+                         f"got {track!r}")
+    signal = None
+    if flow is not None:
+        try:
+            signal = check_flow(flow, flow_column, a.size)
+        except ValueError as exc:
+            raise InputError(str(exc)) from None
+    def run(psi: np.ndarray | None, fit_order: int = order) -> PairEstimate:
+        return characterise_svf(a, b, ts, fit_order, hysteresis, sigma, source,
+                                filter_time_constant, static_model, schedule=psi)
+
+    base = run(None)
+    model = None
+    estimate = base
+    if signal is not None or track == "auto":
+        # The flow law and the tracking start from a first-order fit: with time constants
+        # that vary, a constant second-order model is no anchor (it absorbs the variation in
+        # spurious poles); the order is chosen again with the schedule found.
+        first = base if order == 1 else run(None, 1)
+        if first.status != "ok":
+            return base
+        if signal is not None:
+            estimate, model = flow_law(a, b, first, signal, run)
+        elif base.status != "ok" or _misfits(base):
+            estimate, model = track_without_flow(a, b, first, run)
+        if model is not None and model.kind == "constant":
+            estimate = base
+        if base.status != "ok" and estimate is base:
+            return base
+        if signal is not None and hysteresis and model is not None and model.scheduled:
+            tf = float(estimate.details["filter_time_constant"])  # type: ignore[arg-type]
+            estimate = _hysteresis_beyond_flow(
+                estimate, characterise_svf(a, b, ts, 1, False, sigma, source, tf,
+                                           static_model, schedule=model.psi))
+    elif base.status != "ok":
+        return base
+    conf = confidence(a, b, estimate, model or FlowModel("constant", np.ones(a.size)), signal) \
+        if uncertainty else None
+    return dataclasses.replace(estimate, flow_model=model, confidence=conf)

@@ -3,6 +3,11 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from dualprobe.estimation.confidence import Confidence
+    from dualprobe.estimation.field import FlowModel
 
 __all__ = [
     "PairEstimate",
@@ -15,7 +20,9 @@ class PairEstimate:
 
     ``status``: ok | insufficient_excitation | infeasible (| invalid_argument from the core).
     ``details`` holds the numbers behind the estimate (filter time constant, eigenvalues,
-    ...) and ``message`` when the status is not ok.
+    the core's fit, ...) and ``message`` when the status is not ok. With a flow law or
+    tracking the time constants are those at psi = 1 (the reference flow) and
+    ``flow_model.psi`` schedules them per sample (tau / psi).
     """
 
     status: str
@@ -29,3 +36,5 @@ class PairEstimate:
     time_constants_cool: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     identifiability: dict[str, object] = field(default_factory=dict)
     details: dict[str, object] = field(default_factory=dict)
+    flow_model: FlowModel | None = None  # how the time constants vary: a flow law or tracked
+    confidence: Confidence | None = None  # standard uncertainties and identifiability
