@@ -5,10 +5,11 @@
 smoother found.
 
 Both sensors are measurements of one state-space model
-(:mod:`~dualprobe.reconstruction.statespace`, today from :mod:`dualprobe.reference.kalman`):
-the gas temperature is a random walk (``rw``) or an integrated random walk (``irw``) in
-continuous time, each sensor a chain of first-order stages, discretised exactly (Van Loan), so
-the gas state is the gas temperature AT each sample instant (no half-sample shift).
+(:mod:`~dualprobe.reconstruction.statespace`, discretised by the compiled core): the gas
+temperature is a random walk (``rw``) or an integrated random walk (``irw``) in continuous
+time, each sensor a chain of first-order stages, discretised exactly (Van Loan), so the gas
+state is the gas temperature AT each sample instant (no half-sample shift). Time constants that
+follow the gas flow (a schedule per sample) give one discretisation per schedule level.
 
 ``mode="smoother"`` (offline, default): the maximum a-posteriori gas trajectory given all
 samples, with Student-t (nu = 1) gas increments so that a step between two samples costs
@@ -49,12 +50,11 @@ first moment of the impulse response (the lag on a ramp) exactly; what remains, 
 ((1 + a s)(1 + b s)(1 + (a + b) s))``, is at most ~b/a of a step in the sensor output (0.002 s
 / 25 s of a 100 K step: 0.008 K) and is taken as noise (above). A lone stage faster than Ts/20
 is raised to it. Faster stages above Ts/20 stay in the exact model; for them the model-error
-floor of ``PairModel.floor`` grows as (Ts/tau)^2 and cut sensor 2 off the gas (a_p = 0.002-0.02
+floor of the causal filter grows as (Ts/tau)^2 and cut sensor 2 off the gas (a_p = 0.002-0.02
 s at 10 Hz, 0.01 K, smooth gas: up to 8x worse than without the stage), so the smoother uses
 its own floor with ``1 - exp(-Ts/tau)`` instead of Ts/tau
 (:func:`~dualprobe.reconstruction.statespace.process_floor`; the same for tau >> Ts). The
-causal filter runs :func:`~dualprobe.reconstruction.statespace.kalman_filter` as it is (its
-floor, the merged stages).
+causal filter (the core's Kalman filter) keeps its own floor, with the merged stages.
 
 Steps on a sample instant (right-continuity). A gas step exactly at t_k (the paper's studies,
 zero-order-hold data) leaves the outputs at t_k untouched; the samples cannot tell it from a
@@ -68,8 +68,8 @@ passes, the samples from the instant on carry the level after the step
 (``SmootherFit.steps_at_samples``). Off-grid steps are unaffected; the samples beside any step
 remain the uncertain ones.
 
-``mode="filter"`` (causal, as on the ECU): the Kalman filter of
-:func:`~dualprobe.reconstruction.statespace.kalman_filter` with GLR jump detection, run with
+``mode="filter"`` (causal, as on the ECU): the core's Kalman filter
+(:func:`~dualprobe.reconstruction.statespace.causal_filter`) with GLR jump detection, run with
 the gas model, the merged stages, the noise levels and the background intensity (q / median
 weight) that the smoother identified on the record (on an ECU these are configuration
 constants). Causal: at a step on an instant it reports the level before (the samples show
@@ -94,8 +94,16 @@ two sensors alone).
 
 from __future__ import annotations
 
-from dualprobe.reconstruction.pair import MODES, reconstruct_pair
+from dualprobe.reconstruction.pair import MODES, Reconstruction, reconstruct, reconstruct_pair
 from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother
 from dualprobe.reconstruction.stages import resolvable_stages
 
-__all__ = ["MODES", "SmootherFit", "fit_smoother", "reconstruct_pair", "resolvable_stages"]
+__all__ = [
+    "MODES",
+    "Reconstruction",
+    "SmootherFit",
+    "fit_smoother",
+    "reconstruct",
+    "reconstruct_pair",
+    "resolvable_stages",
+]

@@ -1,9 +1,11 @@
 """``reconstruct_pair``: the gas temperature from a sensor pair, by the smoother (offline), the
-causal filter (as on the ECU) or the exact inverse."""
+causal filter (as on the ECU) or the exact inverse; ``reconstruct`` also returns its standard
+deviation (the smoother's posterior)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -15,15 +17,27 @@ from dualprobe.reconstruction.checks import (
     check_signals,
     effective_sigma,
 )
-from dualprobe.reconstruction.smoother import fit_smoother
-from dualprobe.reconstruction.statespace import kalman_filter
+from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother
+from dualprobe.reconstruction.statespace import causal_filter
 
-__all__ = ["MODES", "reconstruct_pair"]
+__all__ = ["MODES", "Reconstruction", "reconstruct", "reconstruct_pair"]
 
 MODES = ("smoother", "filter", "inverse")
 
 
-def reconstruct_pair(
+@dataclass(frozen=True, eq=False)
+class Reconstruction:
+    """The gas temperature at the sample instants (NaN where it cannot be formed), its
+    posterior standard deviation given the model (smoother; NaN for the other modes), the mode,
+    and the smoother's fit when one ran."""
+
+    gas: np.ndarray
+    gas_std: np.ndarray
+    mode: str
+    fit: SmootherFit | None
+
+
+def reconstruct(
     t1: np.ndarray,
     t2: np.ndarray,
     ts: float,
@@ -35,7 +49,8 @@ def reconstruct_pair(
     taus1_cool: float | Sequence[float] | None = None,
     taus2_cool: float | Sequence[float] | None = None,
     relative_static: tuple[float, float] | None = None,
-) -> np.ndarray:
+    schedule: np.ndarray | None = None,
+) -> Reconstruction:
     """Gas temperature at the sample instants (NaN where it cannot be formed).
 
     ``taus1``/``taus2``: each sensor's time constants (1 or 2; heating ones when hysteretic),
@@ -47,7 +62,9 @@ def reconstruct_pair(
     ``P1 T1 = g P2 T2 + o``): sensor 2's samples are first mapped to sensor 1's calibration,
     ``g T2 + o``, and the result is the gas temperature as sensor 1 reads it (its gain times
     Tg plus its offset; two sensors alone cannot tell their common calibration). Without it
-    both sensors are taken as unit-gain, zero-offset (design.md).
+    both sensors are taken as unit-gain, zero-offset (design.md). ``schedule`` (N,): the time
+    constants in effect at sample k are the given ones times ``schedule[k]`` (they follow the
+    gas flow); the smoother and the filter take it, the exact inverse does not.
     """
     if mode not in MODES:
         raise ValueError(f"reconstruct_pair: mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -69,10 +86,14 @@ def reconstruct_pair(
                 f"reconstruct_pair: taus{i + 1}_cool needs {len(taus[i])} time constants"
             )
     cool_full = (cool[0] or taus[0], cool[1] or taus[1])
+    nan = np.full(y.shape[0], np.nan)
     if mode == "inverse":
-        return zoh_inverse_pair(
+        if schedule is not None:
+            raise ValueError("reconstruct_pair: the exact inverse needs constant time constants")
+        gas = zoh_inverse_pair(
             y[:, 0], y[:, 1], float(ts), taus[0], taus[1], taus1_cool=cool_full[0],
             taus2_cool=cool_full[1], noise_std=effective_sigma(y, sigma), aligned=True)
+        return Reconstruction(gas, nan, mode, None)
     fit = fit_smoother(
         y[:, 0],
         y[:, 1],
@@ -82,8 +103,21 @@ def reconstruct_pair(
         noise_std=sigma,
         taus1_cool=cool[0],
         taus2_cool=cool[1],
+        schedule=schedule,
     )
     if mode == "smoother":
-        return fit.gas
-    result = kalman_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma)
-    return result.gas + fit.offset
+        return Reconstruction(fit.gas, fit.gas_std, mode, fit)
+    gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma) + fit.offset
+    return Reconstruction(gas, nan, mode, fit)
+
+
+def reconstruct_pair(
+    t1: np.ndarray,
+    t2: np.ndarray,
+    ts: float,
+    taus1: float | Sequence[float],
+    taus2: float | Sequence[float],
+    **options: object,
+) -> np.ndarray:
+    """The gas temperature of :func:`reconstruct` (same arguments) at the sample instants."""
+    return reconstruct(t1, t2, ts, taus1, taus2, **options).gas  # type: ignore[arg-type]

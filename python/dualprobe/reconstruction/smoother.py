@@ -5,7 +5,7 @@ sample instant (see the :mod:`dualprobe.reconstruction` docstring)."""
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,13 +19,14 @@ from dualprobe.reconstruction.statespace import (
     continuous_matrix,
     pair_model,
 )
-from dualprobe.reconstruction.trajectory import fit_gas_models
+from dualprobe.reconstruction.trajectory import Trajectory, fit_gas_models, gaussian_log_q
 
 __all__ = ["SmootherFit", "fit_smoother"]
 
 _JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds a jump
 _STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
 _MAX_JUMP_REGION = 4  # longer runs of jump intervals are not one step on an instant
+_MAX_MODE_PASSES = 6  # hysteresis: re-evaluations of the switching modes
 _MAX_NOISE_RAISES = 6  # refits with the noise level raised (see fit_smoother)
 _NOISE_RAISE = 10.0  # factor per refit
 _SNAP = 4  # grid points (10 % of Ts): a step this close to an instant sits on it
@@ -50,6 +51,8 @@ class SmootherFit:
     nll_by_gas: dict[str, float]
     iterations: int
     steps_at_samples: np.ndarray
+    gas_variance: np.ndarray  # posterior variance of the gas at each sample (Laplace, at the MAP)
+    increments: str = "student_t"  # or "gaussian"
 
     @property
     def gas(self) -> np.ndarray:
@@ -61,6 +64,11 @@ class SmootherFit:
             gas[k0 + 1 : k0 + m] = gas[k0]
             gas[k0 + m : k1] = gas[k1]
         return gas
+
+    @property
+    def gas_std(self) -> np.ndarray:
+        """Posterior standard deviation of the gas at the sample instants (given the model)."""
+        return np.sqrt(np.maximum(self.gas_variance, 0.0))
 
     @property
     def background_q(self) -> float:
@@ -90,6 +98,11 @@ def _steps_at_samples(
     shifts the best s by a few % of Ts), and every other instant is clearly worse
     (``2 (r - r(m)) > chi2_1(0.99)``: no step, or a step nowhere in particular)."""
     found: list[tuple[int, int, int]] = []
+    if model.scheduled:
+        # time constants that follow the flow: the step response is not one shape; a step on
+        # an instant stays as the smoother placed it (off-grid convention)
+        return np.zeros((0, 3), dtype=np.intp)
+    slices = model.slices(modes)
     jump = lam < _JUMP_WEIGHT * float(np.median(lam)) if lam.size else np.zeros(0, bool)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], jump.astype(np.int8), [0]))))
     regions = [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
@@ -110,7 +123,7 @@ def _steps_at_samples(
         r = np.zeros(length * per + 1)  # s = i / per, i = 0 .. length * per
         positions = np.arange(r.size)
         for j in range(1, length + 1):
-            free = model.phi[modes[k0 + j - 1]] @ free
+            free = model.phi[slices[k0 + j - 1]] @ free
             resid = y[k0 + j] - model.h @ free
             ago = j * per - positions  # (j - s) in grid units, > 0 when the step came first
             effect = np.where((ago > 0)[:, None], step * response[np.maximum(ago, 0)], 0.0)
@@ -123,6 +136,54 @@ def _steps_at_samples(
         if near and (others.size == 0 or 2.0 * (np.min(others) - on_instant[m]) > _GRID_CHI2):
             found.append((k0, end, m))
     return np.array(found, dtype=np.intp).reshape(-1, 3)
+
+
+def _gaussian_fit(
+    model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str,
+    offset: float,
+) -> SmootherFit:
+    """The Gaussian-increment smoother (the RTS smoother's mean): each gas model at its
+    maximum-likelihood intensity, the better marginal likelihood (exact) wins."""
+    best: tuple[float, float, PairModel, np.ndarray, np.ndarray, Trajectory] | None = None
+    nll_by_gas = {}
+    for name in (("rw", "irw") if gas == "auto" else (gas,)):
+        model = model_for(name)
+        system = Trajectory(model, yc, sigma)
+        modes = np.zeros(yc.shape[0] - 1, dtype=np.intp)
+        for _ in range(_MAX_MODE_PASSES if model.hysteretic else 1):
+            log_q = gaussian_log_q(system, modes)
+            nll, x, _ = system.evaluate(log_q, np.ones(modes.size), modes)
+            new = model.modes(0.5 * (x[1:] + x[:-1])) if x.size else modes
+            if np.array_equal(new, modes):
+                break
+            modes = new
+        nll_by_gas[name] = nll
+        if best is None or nll < best[0]:
+            best = (nll, log_q, model, modes, x, system)
+    assert best is not None
+    nll, log_q, model, modes, x, system = best
+    if not math.isfinite(nll):
+        raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
+    ones = np.ones(yc.shape[0] - 1)
+    return SmootherFit(
+        model=model, q=math.exp(log_q), weights=ones, modes=modes, states=x, offset=offset,
+        nll=nll, sigma=(float(sigma[0]), float(sigma[1])), nll_by_gas=nll_by_gas,
+        iterations=0, steps_at_samples=np.zeros((0, 3), dtype=np.intp),
+        gas_variance=system.posterior_variance(log_q, ones, modes)[:, 0],
+        increments="gaussian",
+    )
+
+
+def _fast_first(
+    heat: tuple[float, ...], cool: tuple[float, ...]
+) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """A sensor's stages with the fastest in front, where the gas meets it (a sheath before the
+    element): the measured stage is then the slow one, whose model-error floor (a share of the
+    gas move reaching it within an interval) is small. Largest first put the floor of a 0.3 s
+    sheath on the measured output and cost 30 % of RMSE on sheathed drive cycles."""
+    if len(heat) < 2 or heat[0] <= heat[1]:
+        return heat, cool
+    return heat[::-1], cool[::-1]
 
 
 def _longest_jump_run(lam: np.ndarray) -> int:
@@ -145,10 +206,21 @@ def fit_smoother(
     taus1_cool: float | Sequence[float] | None = None,
     taus2_cool: float | Sequence[float] | None = None,
     gas: str = "auto",
+    schedule: np.ndarray | None = None,
+    increments: str = "auto",
 ) -> SmootherFit:
     """Fit the heavy-tailed smoother (module docstring) and return everything it found.
 
     ``gas``: ``"auto"`` (rw or irw by marginal likelihood), ``"rw"`` or ``"irw"``.
+    ``schedule`` (N,): the time constants in effect at sample k are the given ones times
+    ``schedule[k]`` (time constants that follow the gas flow; interval k uses the mean of its
+    two ends). ``increments``: "student_t" (heavy tails: steps stay sharp), "gaussian" (the
+    RTS smoother's prior: a gas that moves continuously) or "auto": Gaussian with a schedule.
+    Field conditions, where time constants follow the flow, have a gas that follows engine
+    load through combustion and manifold lags: fast but never a step. There the Student-t
+    increments place "jumps" whose size and instant the samples hardly fix (119 on a
+    20-minute simulated drive cycle, the gas 3.9 K RMS off around them; with Gaussian
+    increments 1.07 K overall against the oracle's 1.03 K).
     """
     y = check_signals(t1, t2, ts)
     taus = (as_taus("taus1", taus1), as_taus("taus2", taus2))
@@ -160,11 +232,19 @@ def fit_smoother(
     sigma = effective_sigma(y, as_sigma(noise_std))
     offset = float(np.mean(y))
     yc = y - offset  # states relative to the record's mean: better conditioned sums
-    stages = [resolvable_stages(taus[i], float(ts), cool[i]) for i in range(2)]
+    intervals = None
+    resolution = float(ts)  # stages are resolvable relative to this (the fastest schedule's)
+    if schedule is not None:
+        row = np.asarray(schedule, dtype=float)
+        if row.shape != (y.shape[0],) or not np.all(np.isfinite(row)) or np.any(row <= 0.0):
+            raise ValueError("reconstruct_pair: schedule must be finite, > 0, one per sample")
+        intervals = 0.5 * (row[1:] + row[:-1])
+        resolution = float(ts) / float(np.min(row))
+    stages = [_fast_first(*resolvable_stages(taus[i], resolution, cool[i])) for i in range(2)]
     for i in range(2):
         # a merged or raised stage errs by ~ its lag times the output's rate: noise to the model
         rate = float(np.sqrt(np.mean(np.diff(y[:, i]) ** 2))) / float(ts)
-        sigma[i] = math.hypot(sigma[i], unresolved_lag(taus[i], cool[i], float(ts)) * rate)
+        sigma[i] = math.hypot(sigma[i], unresolved_lag(taus[i], cool[i], resolution) * rate)
 
     def model_for(name: str) -> PairModel:
         return pair_model(
@@ -174,8 +254,13 @@ def fit_smoother(
             gas=name,
             taus1_cool=stages[0][1],
             taus2_cool=stages[1][1],
+            schedule=intervals,
         )
 
+    if increments == "auto":
+        increments = "gaussian" if schedule is not None else "student_t"
+    if increments == "gaussian":
+        return _gaussian_fit(model_for, yc, sigma, gas, offset)
     for _ in range(_MAX_NOISE_RAISES + 1):
         fits = fit_gas_models(model_for, yc, sigma, gas)
         chosen = min(fits, key=lambda f: f.best[0])
@@ -187,6 +272,8 @@ def fit_smoother(
         # the model needs runs of jumps: it disagrees with the samples by more than the
         # noise (e.g. time constants a little off on noise-free data); that is noise to it
         sigma = sigma * _NOISE_RAISE
+    system = chosen.objective.system
+    variance = system.posterior_variance(log_q, lam, modes)
     return SmootherFit(
         model=chosen.model,
         q=math.exp(log_q),
@@ -199,4 +286,5 @@ def fit_smoother(
         nll_by_gas={f.model.gas: f.best[0] for f in fits},
         iterations=chosen.rounds,
         steps_at_samples=_steps_at_samples(chosen.model, yc, x, lam, modes, sigma),
+        gas_variance=variance[:, 0],
     )

@@ -13,9 +13,10 @@ import scipy.linalg
 import scipy.linalg.lapack
 import scipy.optimize
 
+from dualprobe import _core
 from dualprobe.reconstruction.statespace import PairModel, process_floor
 
-__all__ = ["JUMP_DOF", "GasFit", "Trajectory", "fit_gas_models"]
+__all__ = ["JUMP_DOF", "GasFit", "Trajectory", "fit_gas_models", "gaussian_log_q"]
 
 JUMP_DOF = 1.0  # Student-t increments: a jump costs ~log(size), not size^2 (not data-tuned)
 _MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
@@ -52,13 +53,12 @@ class Trajectory:
         self.rhs = (y @ (self.r_inv @ model.h)).ravel()
         self.upper = 2 * self.n - 1
 
-    def evaluate(
+    def _system(
         self, log_q: float, lam: np.ndarray, modes: np.ndarray
-    ) -> tuple[float, np.ndarray, np.ndarray]:
-        """Gaussian negative log marginal likelihood of y for increments ``N(0, Qb/lambda_k)``
-        (exact: ``J(x) + 1/2 log det A - N n/2 log 2 pi``), the MAP trajectory (N, n) and
-        the unweighted squared Mahalanobis sizes m_k^2 (N-1,) of its increments. ``inf``
-        when the normal equations are not numerically positive definite."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Upper band of the normal equations' matrix (LAPACK layout) for intensity q, weights
+        lambda and the intervals' modes; with the increments' inverse covariances, their
+        log-determinants and each interval's slice."""
         model, n, big_n = self.model, self.n, self.samples
         q = math.exp(log_q)
         qb = q * model.q_unit + process_floor(model, self.sigma, q)
@@ -67,11 +67,12 @@ class Trajectory:
         phi = model.phi
         pwp = np.einsum("mji,mjk,mkl->mil", phi, w_inv, phi)
         pw = np.einsum("mji,mjk->mik", phi, w_inv)
+        slices = model.slices(modes)
         single = phi.shape[0] == 1
         if single:
             pwp_k, w_inv_k, pw_k = pwp[0], w_inv[0], pw[0]
         else:
-            pwp_k, w_inv_k, pw_k = pwp[modes].T, w_inv[modes].T, pw[modes].T  # (n, n, N-1)
+            pwp_k, w_inv_k, pw_k = pwp[slices].T, w_inv[slices].T, pw[slices].T  # (n, n, N-1)
         lam_next = np.zeros(big_n)  # weight of the interval after each sample
         lam_next[:-1] = lam
         lam_prev = np.zeros(big_n)  # ... and before it
@@ -89,6 +90,17 @@ class Trajectory:
                 ab[u + p - c, c::n] = row
             for c in range(n):
                 ab[n - 1 + p - c, n + c :: n] = -lam * (pw_k[p, c] if single else pw_k[c, p])
+        return ab, w_inv, log_det_qb, slices
+
+    def evaluate(
+        self, log_q: float, lam: np.ndarray, modes: np.ndarray
+    ) -> tuple[float, np.ndarray, np.ndarray]:
+        """Gaussian negative log marginal likelihood of y for increments ``N(0, Qb/lambda_k)``
+        (exact: ``J(x) + 1/2 log det A - N n/2 log 2 pi``), the MAP trajectory (N, n) and
+        the unweighted squared Mahalanobis sizes m_k^2 (N-1,) of its increments. ``inf``
+        when the normal equations are not numerically positive definite."""
+        model, n, big_n = self.model, self.n, self.samples
+        ab, w_inv, log_det_qb, slices = self._system(log_q, lam, modes)
         chol, info = scipy.linalg.lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
         if info != 0:
             return math.inf, np.empty((0, n)), np.empty(0)
@@ -99,14 +111,15 @@ class Trajectory:
         # einsum, not matmul: BLAS threads on these tall, thin products cost more than they
         # save (3x the whole fit on a busy 2-core machine)
         resid = self.y - x[:, self.outputs]
+        phi = model.phi
         if phi.shape[0] == 1:
             w = x[1:] - np.einsum("ij,kj->ki", phi[0], x[:-1])
             m2 = np.einsum("ki,ij,kj->k", w, w_inv[0], w)
             log_det_q = (big_n - 1) * log_det_qb[0]
         else:
-            w = x[1:] - np.einsum("kij,kj->ki", phi[modes], x[:-1])
-            m2 = np.einsum("ki,kij,kj->k", w, w_inv[modes], w)
-            log_det_q = float(np.sum(log_det_qb[modes]))
+            w = x[1:] - np.einsum("kij,kj->ki", phi[slices], x[:-1])
+            m2 = np.einsum("ki,kij,kj->k", w, w_inv[slices], w)
+            log_det_q = float(np.sum(log_det_qb[slices]))
         prior = float(np.dot(lam, m2)) + log_det_q - n * float(np.sum(np.log(lam)))
         nll = 0.5 * (
             float(np.sum(resid * resid / self.sigma**2))
@@ -118,6 +131,33 @@ class Trajectory:
         if not math.isfinite(nll):
             return math.inf, np.empty((0, n)), np.empty(0)
         return float(nll), x, m2
+
+    def information_criterion(
+        self, log_q: float, lam: np.ndarray, modes: np.ndarray
+    ) -> tuple[float, np.ndarray, np.ndarray]:
+        """(AIC of the fit to the samples, trajectory (N, n), posterior variances (N, n)):
+        ``chi^2 + 2 dof`` with the smoother's effective degrees of freedom ``dof = sum over
+        the measured states of posterior variance / sigma^2`` (the trace of its hat matrix).
+        Compares smoothers of different flexibility (Gaussian vs Student-t increments) by how
+        well they predict the samples, not by their priors."""
+        _, x, _ = self.evaluate(log_q, lam, modes)
+        if x.size == 0:
+            return math.inf, x, x
+        var = self.posterior_variance(log_q, lam, modes)
+        resid = self.y - x[:, self.outputs]
+        chi2 = float(np.sum(resid * resid / self.sigma**2))
+        dof = float(np.sum(var[:, self.outputs] / self.sigma**2))
+        return chi2 + 2.0 * dof, x, var
+
+    def posterior_variance(self, log_q: float, lam: np.ndarray, modes: np.ndarray) -> np.ndarray:
+        """Posterior variance of every state at every sample (N, n): the diagonal of the
+        inverse of the normal equations' matrix (the Laplace approximation at the MAP
+        trajectory for the Student-t weights lambda), by the Takahashi recursion in the core."""
+        ab, _, _, _ = self._system(log_q, lam, modes)
+        chol, info = scipy.linalg.lapack.dpbtrf(ab, lower=0, overwrite_ab=1)
+        if info != 0:
+            return np.full((self.samples, self.n), math.nan)
+        return np.asarray(_core.banded_inverse_diagonal(chol)).reshape(self.samples, self.n)
 
 
 def _interval_modes(model: PairModel, x: np.ndarray) -> np.ndarray:
@@ -327,3 +367,10 @@ def fit_gas_models(
         irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
         fits = [*fits, irw] if gas == "auto" else [irw]
     return fits
+
+
+def gaussian_log_q(system: Trajectory, modes: np.ndarray) -> float:
+    """The Gaussian model's maximum-likelihood log q (all weights 1) for given modes."""
+    objective = _Objective(system, modes)
+    lowest, start, highest = _log_q_range(system.model, system.y, system.sigma)
+    return _minimise_log_q(objective, start, 4.0, (lowest, highest), _LOGQ_TOL)
