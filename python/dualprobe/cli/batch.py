@@ -24,7 +24,7 @@ def _workers(text: str) -> int:
 
 
 def register(subparsers: Any) -> None:
-    from dualprobe.cli.characterise import _noise_std
+    from dualprobe.cli.characterise import _noise_std, _order
     from dualprobe.workflows.characterise import METHODS
 
     parser = subparsers.add_parser(
@@ -58,7 +58,8 @@ def register(subparsers: Any) -> None:
     parser.add_argument("--sensor1", default="T_m1", metavar="COL", help="faster sensor (T_m1)")
     parser.add_argument("--sensor2", default="T_m2", metavar="COL", help="slower sensor (T_m2)")
     parser.add_argument("--method", choices=METHODS, default="auto", help="as characterise")
-    parser.add_argument("--order", type=int, choices=(1, 2), default=1, help="sensor model order")
+    parser.add_argument("--order", type=_order, default="auto", metavar="auto|1|2",
+                        help="sensor model order (auto: up to 2, chosen per sensor by evidence)")
     parser.add_argument("--hysteresis", action="store_true", help="heating / cooling taus")
     parser.add_argument("--noise-std", type=_noise_std, default=None, metavar="SIGMA",
                         help="sensor noise std in K (SIGMA or SIGMA1,SIGMA2)")

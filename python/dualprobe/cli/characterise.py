@@ -39,6 +39,14 @@ def _noise_std(text: str) -> tuple[float, ...]:
     return values
 
 
+def _order(text: str) -> int | str:
+    if text == "auto":
+        return "auto"
+    if text in ("1", "2"):
+        return int(text)
+    raise argparse.ArgumentTypeError(f"expected auto, 1 or 2, got {text!r}")
+
+
 def _dcm_names(text: str) -> tuple[str, str]:
     names = tuple(part.strip() for part in text.split(","))
     if len(names) != 2 or not all(names):
@@ -68,7 +76,29 @@ def register(subparsers: Any) -> None:
         help="auto (default: noise-robust state-variable filter), svf, or the paper's "
         "difference-equation ls|tls|gtls",
     )
-    parser.add_argument("--order", type=int, choices=(1, 2), default=1, help="sensor model order")
+    parser.add_argument(
+        "--order",
+        type=_order,
+        default="auto",
+        metavar="auto|1|2",
+        help="sensor model order: auto (default: up to 2, chosen per sensor by evidence; RTDs "
+        "are not first order), or 1 or 2 to force it",
+    )
+    parser.add_argument(
+        "--flow",
+        default=None,
+        metavar="COL",
+        help="a positive flow-like column (exhaust mass flow, gas velocity; only its ratios "
+        "matter): the time constants follow it (paper eq. 1), by a law chosen by evidence "
+        "(constant, power law or free curve)",
+    )
+    parser.add_argument(
+        "--track",
+        choices=("auto", "off"),
+        default="auto",
+        help="without --flow: track time constants that vary over the record with their ratio "
+        "constant when the data need it (auto, default) or never (off)",
+    )
     parser.add_argument(
         "--hysteresis",
         action="store_true",
@@ -99,7 +129,9 @@ def register(subparsers: Any) -> None:
         "--output",
         default=None,
         metavar="PATH",
-        help="write the reconstruction as CSV t,T_g_hat (one row per input row)",
+        help="write the reconstruction as CSV t,T_g_hat,T_g_std,tau1,tau2 (one row per input "
+        "row: the gas temperature, its standard deviation, each sensor's time constant in "
+        "effect)",
     )
     parser.add_argument(
         "--dcm",
@@ -147,6 +179,8 @@ def run(args: argparse.Namespace) -> int:
         reference=args.reference,
         reconstruction=args.reconstruction if need_reconstruction else None,
         time_unit=args.time_unit,
+        flow=args.flow,
+        track=args.track,
     )
     print_notes(result.notes)
     if args.json is not None:

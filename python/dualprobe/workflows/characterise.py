@@ -1,21 +1,22 @@
-"""The pipeline behind `dualprobe characterise`: load, validate, estimate, reconstruct, report."""
+"""The pipeline behind `dualprobe characterise`: load, validate, estimate (with a flow law or
+tracked time constants, and standard uncertainties), reconstruct, check the model, report."""
 
 from __future__ import annotations
 
 import math
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
-from dualprobe.reconstruction import reconstruct_pair
-from dualprobe.report.json import jsonable
+from dualprobe.reconstruction import Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
+from dualprobe.workflows.characterisation import Characterisation
+from dualprobe.workflows.checks import check_model, refuse_implausible
 
 __all__ = [
     "METHODS",
@@ -26,92 +27,7 @@ __all__ = [
     "load_pair",
 ]
 
-ORDERS = (1, 2)
-
-
-@dataclass(frozen=True)
-class Characterisation:
-    """Result of characterising one recording of a sensor pair."""
-
-    estimate: PairEstimate
-    columns: tuple[str, str]
-    time: np.ndarray  # time stamps of the input rows
-    gas_estimate: np.ndarray | None  # reconstructed gas temperature per input row (NaN: none)
-    reconstruction_mode: str | None
-    reference_column: str | None
-    rmse_vs_reference: float | None
-    source: str | None = None
-    requested_order: int | None = None
-    notes: tuple[str, ...] = ()  # one-line notes of the loader (units, jitter, interpolation)
-
-    def to_json_dict(self) -> dict[str, Any]:
-        """The `--json` document (see the issue 2 specification)."""
-        est = self.estimate
-        sensors: list[dict[str, Any]] = []
-        for index, column in enumerate(self.columns):
-            sensor: dict[str, Any] = {
-                "column": column,
-                "time_constants": list(est.time_constants[index]),
-            }
-            if est.time_constants_heat is not None:
-                sensor["time_constants_heat"] = list(est.time_constants_heat[index])
-            if est.time_constants_cool is not None:
-                sensor["time_constants_cool"] = list(est.time_constants_cool[index])
-            sensors.append(sensor)
-        document: dict[str, Any] = {
-            "method": est.method,
-            "order": est.order,
-            "sample_interval": est.sample_interval,
-            "status": est.status,
-            "beta": est.beta,
-            "sensors": sensors,
-            "noise_std": list(est.noise_std),
-            "identifiability": dict(est.identifiability),
-        }
-        if self.reference_column is not None:
-            document["reconstruction"] = {
-                "rmse_vs_reference": self.rmse_vs_reference,
-                "reference_column": self.reference_column,
-                "mode": self.reconstruction_mode,
-            }
-        return jsonable(document)
-
-    def summary(self) -> str:
-        """A short human-readable summary (a few lines)."""
-        est = self.estimate
-        lines = []
-        where = f"{self.source}: " if self.source else ""
-        lines.append(
-            f"{where}{self.time.size} samples, sample interval {est.sample_interval:.6g} s"
-        )
-        lines.append(f"method {est.method}, order {est.order}: {est.status}")
-        for index, column in enumerate(self.columns):
-            taus = ", ".join(f"{tau:.5g}" for tau in est.time_constants[index])
-            text = f"  {column}: time constant{'s' if len(est.time_constants[index]) > 1 else ''}"
-            text += f" {taus} s"
-            if est.time_constants_heat is not None and est.time_constants_cool is not None:
-                heat = ", ".join(f"{tau:.5g}" for tau in est.time_constants_heat[index])
-                cool = ", ".join(f"{tau:.5g}" for tau in est.time_constants_cool[index])
-                text += f" (heating {heat} s, cooling {cool} s)"
-            lines.append(text)
-        if self.requested_order is not None and est.order != self.requested_order:
-            lines.append(
-                f"  note: order {self.requested_order} requested; the data support order "
-                f"{est.order}"
-            )
-        message = est.identifiability.get("message")
-        if message:
-            lines.append(f"  note: {' '.join(str(message).split())}")
-        noise = ", ".join(f"{s:.3g}" for s in est.noise_std)
-        lines.append(f"  noise std: {noise} K" + (f"; beta {est.beta:.6g}" if est.beta else ""))
-        if self.gas_estimate is not None:
-            valid = int(np.count_nonzero(np.isfinite(self.gas_estimate)))
-            text = f"reconstruction ({self.reconstruction_mode}): {valid} of "
-            text += f"{self.gas_estimate.size} samples"
-            if self.rmse_vs_reference is not None:
-                text += f", RMSE vs {self.reference_column} {self.rmse_vs_reference:.4g} K"
-            lines.append(text)
-        return "\n".join(lines)
+ORDERS = ("auto", 1, 2)
 
 
 def _parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
@@ -157,6 +73,45 @@ def _relative_static(estimate: PairEstimate) -> tuple[float, float] | None:
     return float(gain), float(offset)
 
 
+def _failure_message(estimate: PairEstimate) -> str:
+    """One line saying what in the data prevents an estimate and what would help."""
+    detail = estimate.details.get("message") if estimate.details else None
+    text = f"estimation failed: {estimate.status.replace('_', ' ')}"
+    if detail:
+        return f"{text}: {detail}"
+    return text + {
+        "insufficient_excitation": " (the signals do not change enough to identify the time "
+        "constants: record a larger or faster temperature change, or a longer record)",
+        "infeasible": " (no physical time constants fit these signals: the sensors may see "
+        "different gas temperatures or need another model; try --order 1, --flow or "
+        "--hysteresis, or check that --sensor1 is the faster sensor)",
+    }.get(estimate.status, "")
+
+
+def _residuals(
+    result: Reconstruction, t1: np.ndarray, t2: np.ndarray, static: tuple[float, float] | None
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """Each sensor's reading minus the smoother model's prediction (sensor 2 in sensor 1's
+    calibration when the affine static model holds)."""
+    fit = result.fit
+    if fit is None:
+        return None
+    outputs = np.argmax(fit.model.h, axis=1)
+    predicted = fit.states[:, outputs] + fit.offset
+    u2 = t2 if static is None else static[0] * t2 + static[1]
+    return t1 - predicted[:, 0], u2 - predicted[:, 1]
+
+
+def _order(order: int | str, hysteresis: bool) -> tuple[int, int | None]:
+    """(order to fit, order requested): "auto" is up to 2 chosen per sensor by evidence (1 with
+    the heating/cooling split, which is first order)."""
+    if order == "auto":
+        return (1 if hysteresis else 2), None
+    if order not in (1, 2):
+        raise InputError(f"order must be auto, 1 or 2, got {order!r}")
+    return int(order), int(order)
+
+
 def characterise_arrays(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -165,18 +120,25 @@ def characterise_arrays(
     time: np.ndarray | None = None,
     columns: tuple[str, str] = ("T_m1", "T_m2"),
     method: str = "auto",
-    order: int = 1,
+    order: int | str = "auto",
     hysteresis: bool = False,
     noise_std: float | Sequence[float] | None = None,
     reconstruction: str | None = "smoother",
     reference: np.ndarray | None = None,
     reference_column: str | None = None,
     source: str | None = None,
+    flow: np.ndarray | None = None,
+    flow_column: str | None = None,
+    track: str = "auto",
+    uncertainty: bool = True,
 ) -> Characterisation:
     """Characterise a sensor pair from two sampled signals and optionally reconstruct the gas.
 
-    Raises InputError for unusable arguments and EstimationError when the data do not allow an
-    estimate (no excitation, infeasible or insufficiently excited estimate).
+    ``flow``: a positive flow-like signal per row (the time constants then follow a flow law);
+    ``track``: "auto" tracks time constants that vary without a flow signal when the data need
+    it, "off" never; ``uncertainty``: standard uncertainties and identifiability. Raises
+    InputError for unusable arguments and EstimationError when the data do not allow an
+    estimate (no excitation, infeasible or implausible result).
     """
     t1 = np.asarray(t1, dtype=np.float64)
     t2 = np.asarray(t2, dtype=np.float64)
@@ -186,8 +148,9 @@ def characterise_arrays(
         raise InputError(f"sample interval must be finite and > 0, got {ts!r}")
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}")
-    if order not in ORDERS:
-        raise InputError(f"order must be 1 or 2, got {order!r}")
+    fit_order, requested = _order(order, hysteresis)
+    if method in ("ls", "tls", "gtls"):
+        fit_order = 1 if requested is None else fit_order
     if reconstruction is not None and reconstruction not in RECONSTRUCTION_MODES:
         raise InputError(
             f"reconstruction must be one of {', '.join(RECONSTRUCTION_MODES)}, "
@@ -203,63 +166,45 @@ def characterise_arrays(
             raise InputError("reference must have the same length as the sensor signals")
     sigma = _parse_noise_std(noise_std)
     _check_excitation(t1, t2, columns)
-
+    svf = method in ("auto", "svf")
     estimate = characterise_pair(
-        t1, t2, ts, method=method, order=order, hysteresis=hysteresis, noise_std=sigma
+        t1, t2, ts, method=method, order=fit_order, hysteresis=hysteresis, noise_std=sigma,
+        flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
+        uncertainty=uncertainty and svf,
     )
+    if flow is not None and not svf:
+        raise InputError(f"--flow needs the SVF method (auto or svf), not {method!r}")
     if estimate.status != "ok":
-        detail = estimate.details.get("message") if estimate.details else None
-        text = f"estimation failed: {estimate.status.replace('_', ' ')}"
-        if detail:
-            text += f": {detail}"
-        else:
-            text += {
-                "insufficient_excitation": " (the signals do not change enough to identify "
-                "the time constants; record a temperature change)",
-                "infeasible": " (no physical time constants fit these signals; check that "
-                "--sensor1 is the faster sensor's column and the columns are right)",
-            }.get(estimate.status, "")
-        raise EstimationError(text)
-
+        raise EstimationError(_failure_message(estimate))
+    if requested is None and estimate.identifiability.get("shared_poles") and estimate.order == 1:
+        # order chosen by evidence: a degenerate order-2 fit is the expected outcome for a
+        # first-order pair, not news (the shared-pole wording is for an asked-for order 2)
+        estimate.identifiability.pop("message", None)
+        estimate.identifiability["order_note"] = (
+            "order chosen by evidence: first order fits both sensors (a second stage, if any, "
+            "is below what the data resolve or common to both)")
+    static = _relative_static(estimate)
     gas: np.ndarray | None = None
+    gas_std: np.ndarray | None = None
     rmse: float | None = None
+    residuals = None
     if reconstruction is not None:
-        heat = estimate.time_constants_heat
-        cool = estimate.time_constants_cool
-        hysteretic = hysteresis and heat is not None and cool is not None
-        try:
-            gas = np.asarray(
-                reconstruct_pair(
-                    t1,
-                    t2,
-                    ts,
-                    heat[0] if hysteretic and heat is not None else estimate.time_constants[0],
-                    heat[1] if hysteretic and heat is not None else estimate.time_constants[1],
-                    mode=reconstruction,
-                    noise_std=estimate.noise_std,
-                    taus1_cool=cool[0] if hysteretic and cool is not None else None,
-                    taus2_cool=cool[1] if hysteretic and cool is not None else None,
-                    relative_static=_relative_static(estimate),
-                ),
-                dtype=np.float64,
-            )
-        except ValueError as exc:
-            # the inputs were validated above: what is left is the data not supporting the
-            # reconstruction with these time constants (exit 3, not 2)
-            raise EstimationError(
-                f"reconstruction ({reconstruction}) with time constants "
-                f"{_format_taus(estimate.time_constants)} failed: {exc}"
-            ) from None
-        if gas.shape != t1.shape:
-            raise EstimationError(
-                f"reconstruction returned {gas.shape[0] if gas.ndim else 0} samples for "
-                f"{t1.size} inputs"
-            )
+        result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
+        gas, gas_std = result.gas, result.gas_std
+        residuals = _residuals(result, t1, t2, static)
         if reference is not None:
             valid = np.isfinite(gas)
             if not np.any(valid):
                 raise EstimationError("reconstruction produced no values to compare")
             rmse = float(np.sqrt(np.mean((gas[valid] - reference[valid]) ** 2)))
+    duration = (t1.size - 1) * ts
+    refuse_implausible(estimate, duration, columns, residuals, (t1, t2))
+    noise = estimate.noise_std
+    used = estimate.details.get("noise_std_used", noise)
+    levels = (float(used[0]), float(used[1]))  # type: ignore[index]
+    if static is not None:
+        levels = (levels[0], abs(static[0]) * levels[1])
+    check = check_model(estimate, residuals, levels) if svf else None
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts
     return Characterisation(
@@ -271,8 +216,45 @@ def characterise_arrays(
         reference_column=reference_column if reference is not None else None,
         rmse_vs_reference=rmse,
         source=source,
-        requested_order=order,
+        requested_order=requested,
+        gas_std=gas_std,
+        model_check=check,
+        flow=None if flow is None else np.asarray(flow, dtype=np.float64),
     )
+
+
+def _reconstruct(
+    t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate, mode: str,
+    hysteresis: bool, static: tuple[float, float] | None,
+) -> Reconstruction:
+    heat = estimate.time_constants_heat
+    cool = estimate.time_constants_cool
+    hysteretic = hysteresis and heat is not None and cool is not None
+    model = estimate.flow_model
+    schedule = None if model is None or model.kind == "constant" else 1.0 / model.psi
+    try:
+        result = reconstruct(
+            t1, t2, ts,
+            heat[0] if hysteretic and heat is not None else estimate.time_constants[0],
+            heat[1] if hysteretic and heat is not None else estimate.time_constants[1],
+            mode=mode, noise_std=estimate.noise_std,
+            taus1_cool=cool[0] if hysteretic and cool is not None else None,
+            taus2_cool=cool[1] if hysteretic and cool is not None else None,
+            relative_static=static, schedule=schedule,
+        )
+    except ValueError as exc:
+        # the inputs were validated above: what is left is the data not supporting the
+        # reconstruction with these time constants (exit 3, not 2)
+        raise EstimationError(
+            f"reconstruction ({mode}) with time constants "
+            f"{_format_taus(estimate.time_constants)} failed: {exc}"
+        ) from None
+    if result.gas.shape != t1.shape:
+        raise EstimationError(
+            f"reconstruction returned {result.gas.shape[0] if result.gas.ndim else 0} samples "
+            f"for {t1.size} inputs"
+        )
+    return result
 
 
 def load_pair(
@@ -303,12 +285,15 @@ def characterise_file(
     sensor2: str = "T_m2",
     sample_interval: float | None = None,
     method: str = "auto",
-    order: int = 1,
+    order: int | str = "auto",
     hysteresis: bool = False,
     noise_std: float | Sequence[float] | None = None,
     reference: str | None = None,
     reconstruction: str | None = "smoother",
     time_unit: str | None = None,
+    flow: str | None = None,
+    track: str = "auto",
+    uncertainty: bool = True,
 ) -> Characterisation:
     """Load a recording (CSV, Parquet or MDF4) and characterise it (see
     :func:`characterise_arrays`).
@@ -318,7 +303,9 @@ def characterise_file(
     """
     if sensor1 == sensor2:
         raise InputError(f"--sensor1 and --sensor2 name the same column {sensor1!r}")
-    wanted = [sensor1, sensor2] + ([reference] if reference else [])
+    if flow is not None and flow in (sensor1, sensor2):
+        raise InputError(f"--flow {flow!r} names a sensor column")
+    wanted = [sensor1, sensor2] + ([reference] if reference else []) + ([flow] if flow else [])
     recording = load_pair(
         path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval
     )
@@ -337,6 +324,10 @@ def characterise_file(
         reference=columns[reference] if reference else None,
         reference_column=reference,
         source=str(path),
+        flow=columns[flow] if flow else None,
+        flow_column=flow,
+        track=track,
+        uncertainty=uncertainty,
     )
     return replace(result, notes=recording.notes)
 
@@ -347,7 +338,12 @@ def write_json(result: Characterisation, path: str | os.PathLike[str]) -> None:
 
 
 def write_reconstruction(result: Characterisation, path: str | os.PathLike[str]) -> None:
-    """Write the `--output` CSV: `t,T_g_hat`, one row per input row, `nan` where no value."""
+    """Write the `--output` CSV: `t,T_g_hat,T_g_std,tau1,tau2`, one row per input row (`nan`
+    where no value): the reconstruction, its standard deviation (the smoother's posterior given
+    the model) and each sensor's dominant time constant in effect at the row."""
     if result.gas_estimate is None:
         raise InputError("no reconstruction to write")
-    write_columns(path, {"t": result.time, "T_g_hat": result.gas_estimate})
+    tau1, tau2 = result.time_constants_per_row()
+    std = result.gas_std if result.gas_std is not None else np.full(result.time.size, np.nan)
+    write_columns(path, {"t": result.time, "T_g_hat": result.gas_estimate, "T_g_std": std,
+                         "tau1": tau1, "tau2": tau2})

@@ -1,0 +1,114 @@
+"""Never a silently wrong answer: does the identified model explain both signals?
+
+Every characterisation is checked twice. The estimation's own misfit: the smallest generalised
+eigenvalue of the cross-relation is the residual in units of what the two sensors' noise
+explains; beyond ``GAP_THRESHOLD`` standard deviations of its noise-only spread the model
+misses something (the two sensors' filtered reconstructions of the gas disagree by more than
+their noise: the cross-relation *is* that difference). And, when the gas temperature was
+reconstructed, each sensor's residual against the smoother's model: its RMS in units of the
+sensor's noise (``MISFIT_LIMIT``: above 2 the residual is structured, not noise).
+
+Implausible results are refused (exit 3) with what and why, in terms a test engineer can act
+on: a time constant longer than a third of the record (the record cannot determine it), or a
+reconstruction that predicts a sensor worse than the other sensor's raw reading does (the model
+is worse than no model).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
+from dualprobe.io import EstimationError
+
+__all__ = ["MISFIT_LIMIT", "ModelCheck", "check_model", "refuse_implausible"]
+
+MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
+RECORD_FRACTION = 1.0 / 3.0  # time constants longer than a third of the record are refused
+
+
+@dataclass(frozen=True)
+class ModelCheck:
+    """``adequate`` when the estimation's misfit is within the noise band and (if a
+    reconstruction ran) both sensors' residuals are at their noise level."""
+
+    adequate: bool
+    estimation_misfit: float  # smallest generalised eigenvalue (1: the noise)
+    estimation_statistic: float  # its excess in noise-only standard deviations
+    misfit_to_noise: tuple[float, float] | None  # each sensor's residual RMS / its noise
+    reasons: list[str] = field(default_factory=list)
+
+    def to_json_dict(self) -> dict[str, Any]:
+        return {"adequate": self.adequate, "estimation_misfit": self.estimation_misfit,
+                "estimation_statistic": self.estimation_statistic,
+                "misfit": max(self.misfit_to_noise) if self.misfit_to_noise else
+                self.estimation_misfit,
+                "misfit_to_noise": list(self.misfit_to_noise) if self.misfit_to_noise else None,
+                "reasons": list(self.reasons)}
+
+    def summary_lines(self) -> list[str]:
+        if self.adequate:
+            text = f"model check: the model explains both signals (misfit " \
+                   f"{self.estimation_misfit:.3g} x the noise"
+            if self.misfit_to_noise:
+                text += ", residuals " + ", ".join(f"{m:.2g}" for m in self.misfit_to_noise)
+                text += " x each sensor's noise"
+            return [text + ")"]
+        return [f"warning: {reason}" for reason in self.reasons]
+
+
+def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,
+                sigma: tuple[float, float] | None) -> ModelCheck:
+    """The model check (module docstring). ``residuals``: each sensor's reading minus what
+    the reconstruction predicts for it (None without a reconstruction); ``sigma``: the noise
+    levels they are compared with."""
+    details = estimate.details
+    mu = float(details.get("residual_to_noise", math.nan))  # type: ignore[arg-type]
+    n_eff = float(details.get("effective_samples", math.nan))  # type: ignore[arg-type]
+    statistic = (mu - 1.0) * math.sqrt(n_eff / 2.0) if math.isfinite(mu * n_eff) else math.nan
+    reasons = []
+    if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+        reasons.append(
+            f"the identified model does not explain the data: the two sensors' reconstructions "
+            f"disagree by {math.sqrt(mu):.3g} times what their noise allows (misfit {mu:.3g} x "
+            f"the noise, {statistic:.0f} standard deviations); the sensors may be of higher "
+            "order, hysteretic, follow the flow, or see different gas temperatures")
+    ratios = None
+    if residuals is not None and sigma is not None:
+        ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
+                       for r, s in zip(residuals, sigma, strict=True))
+        for i, ratio in enumerate(ratios):
+            if ratio > MISFIT_LIMIT:
+                reasons.append(f"sensor {i + 1}'s reading departs from the model by "
+                               f"{ratio:.3g} times its noise (RMS)")
+    return ModelCheck(not reasons, mu, statistic, ratios, reasons)  # type: ignore[arg-type]
+
+
+def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[str, str],
+                       residuals: tuple[np.ndarray, np.ndarray] | None,
+                       readings: tuple[np.ndarray, np.ndarray]) -> None:
+    """Raise EstimationError (exit 3) for results no physics allows (module docstring)."""
+    psi = estimate.flow_model.psi if estimate.flow_model is not None else None
+    for i, column in enumerate(columns):
+        taus = estimate.time_constants[i]
+        longest = max(taus) / (float(np.min(psi)) if psi is not None else 1.0)
+        if not math.isfinite(longest) or longest > RECORD_FRACTION * duration:
+            raise EstimationError(
+                f"{column}: time constant {longest:.4g} s is longer than a third of the record "
+                f"({duration:.4g} s): the record cannot determine it; record longer, or with "
+                "larger and faster temperature changes (or use --order 1)")
+    if residuals is None:
+        return
+    spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
+    for i, column in enumerate(columns):
+        rms = float(np.sqrt(np.nanmean(residuals[i] ** 2)))
+        if rms > spread:
+            raise EstimationError(
+                f"{column}: the identified model predicts this sensor worse ({rms:.3g} K RMS) "
+                f"than the other sensor's raw reading does ({spread:.3g} K): the time constants "
+                "do not describe these signals; check that both sensors see the same gas, or "
+                "try --order 1 or --flow")
