@@ -316,12 +316,21 @@ def test_json_document_and_output_rows(
         "noise_std",
         "identifiability",
         "reconstruction",
+        "static_model",  # issue 16: gain ratio and offset with their uncertainties
+        "uncertainty",  # issue 16: how the standard uncertainties were computed
+        "model_check",  # issue 11: does the model explain both signals
     }
     assert document["order"] == 1 and document["method"] in ("svf", "auto")
     sensors = document["sensors"]
     assert isinstance(sensors, list)
     assert [s["column"] for s in sensors] == ["T_m1", "T_m2"]
-    assert all(set(s) == {"column", "time_constants"} for s in sensors)
+    assert all(set(s) == {"column", "time_constants", "time_constants_std", "identifiable",
+                          "identifiability_reasons"} for s in sensors)
+    for sensor in sensors:
+        assert len(sensor["time_constants_std"]) == len(sensor["time_constants"])
+        assert all(0.0 < s < 0.05 * t for s, t in zip(sensor["time_constants_std"],
+                                                       sensor["time_constants"], strict=True))
+    assert document["model_check"]["adequate"] is True
     reconstruction = document["reconstruction"]
     assert isinstance(reconstruction, dict)
     _, columns, _ = load_columns(pt100_csv, ["T_g"])

@@ -20,7 +20,7 @@ from dualprobe import simulate
 from dualprobe.models import noise
 from dualprobe.models.inverse import zoh_inverse
 from dualprobe.reconstruction import fit_smoother, reconstruct_pair, resolvable_stages
-from dualprobe.reconstruction.statespace import process_floor
+from dualprobe.reconstruction.statespace import causal_filter, pair_model, process_floor
 from dualprobe.reconstruction.trajectory import Trajectory
 from dualprobe.reference import kalman
 
@@ -157,10 +157,11 @@ def test_filter_is_causal_and_better_than_the_sensor(steps_10hz: simulate.PairRe
     assert ratio <= 0.06  # the smoother's bound holds causally too (measured 0.009-0.013)
     fit = fit_smoother(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
     y = np.column_stack([rec.t1, rec.t2]) - fit.offset
-    whole = kalman.kalman_filter(y, fit.model, fit.background_q, fit.sigma)
-    head = kalman.kalman_filter(y[:2000], fit.model, fit.background_q, fit.sigma)
-    # causality: the first 2000 outputs do not change when later samples are cut off
-    np.testing.assert_allclose(head.gas, whole.gas[:2000], rtol=0.0, atol=1e-12)
+    whole = causal_filter(y, fit.model, fit.background_q, fit.sigma)
+    head = causal_filter(y[:2000], fit.model, fit.background_q, fit.sigma)
+    # causality of the filter the product runs (the core's): the first 2000 outputs do not
+    # change when later samples are cut off
+    np.testing.assert_allclose(head, whole[:2000], rtol=0.0, atol=1e-12)
 
 
 def test_filter_stays_bounded_with_a_wrong_model() -> None:
@@ -306,12 +307,17 @@ def test_banded_smoother_equals_rts_smoother() -> None:
     sigma = np.array([0.1, 0.1])
     q = 5.0
     for gas in ("rw", "irw"):
-        model = kalman.pair_model(PT100_FAST, PT100_SLOW, 0.1, gas=gas)
+        model = pair_model(PT100_FAST, PT100_SLOW, 0.1, gas=gas)
+        # the core's discretisation against the reference's independent Van Loan expm
+        check = kalman.pair_model(PT100_FAST, PT100_SLOW, 0.1, gas=gas)
+        np.testing.assert_allclose(model.phi, check.phi, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(model.q_unit, check.q_unit, rtol=1e-9,
+                                   atol=1e-12 * float(np.max(check.q_unit)))
         system = Trajectory(model, y, sigma)
         lam = np.ones(y.shape[0] - 1)
         nll, banded, _ = system.evaluate(math.log(q), lam, np.zeros(lam.size, dtype=np.intp))
         phi = model.phi[0]
-        big_q = q * model.q_unit[0] + process_floor(model, sigma, q)
+        big_q = q * model.q_unit[0] + process_floor(model, sigma, q)[0]
         h, r = model.h, np.diag(sigma**2)
         n = model.n
         # prior 1000 K wide around the first samples: its pull is ~(posterior/prior var) 1e-6
@@ -657,7 +663,7 @@ def test_characterise_reports_a_failed_reconstruction_as_estimation_error(
     def failing(*args: object, **kwargs: object) -> np.ndarray:
         raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
 
-    monkeypatch.setattr(characterise, "reconstruct_pair", failing)
+    monkeypatch.setattr(characterise, "reconstruct", failing)
     with pytest.raises(EstimationError, match=r"reconstruction \(smoother\) .*failed"):
         characterise.characterise_arrays(rec.t1, rec.t2, rec.ts)
     path = tmp_path / "pair.csv"
