@@ -24,8 +24,14 @@ test: setup cpp-test asan-test lint pytest
 
 # setup-demo: a C++ compiler, Eigen, Python headers and the package (no test extras);
 # setup: everything the tests use (clang and its fuzzer runtime, the ARM toolchain, QEMU, ...).
-setup-demo: deb-demo venv-demo
-setup: deb venv
+# The Debian packages and the Python dependencies are installed in parallel (the virtual
+# environment needs only what is assumed), then the extension is built, which needs both.
+setup-demo:
+	@$(MAKE) --no-print-directory -j2 deb-demo $(STAMP)/venv
+	@$(MAKE) --no-print-directory venv-demo
+setup:
+	@$(MAKE) --no-print-directory -j2 deb $(STAMP)/venv
+	@$(MAKE) --no-print-directory venv
 
 # Install only what is missing (a prepared machine pays nothing), then check that every tool
 # and runtime file is really there: a missing one stops here with one line naming its package.
@@ -48,23 +54,27 @@ deb-demo:
 deb:
 	$(call install-debs,test)
 
-# The virtual environment with the package (editable, the C++ extension built in place).
-$(STAMP)/venv: pyproject.toml CMakeLists.txt | deb-demo
+# The virtual environment with the build tools and the package's dependencies (no compiler
+# needed yet).
+$(STAMP)/venv: pyproject.toml CMakeLists.txt
+	@$(CHECK_DEPS) base
 	@mkdir -p $(STAMP)
 	test -x $(VPY) || $(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install -q "scikit-build-core>=0.10" "pybind11>=3" ninja "cmake>=3.20"
-	$(VPY) -m pip install -q --no-build-isolation -e .
-	touch $@ $(STAMP)/extension
-
-# The test extras (pytest, ruff, hypothesis), for `make test` only.
-$(STAMP)/test-extras: $(STAMP)/venv pyproject.toml
-	$(VPY) -m pip install -q --no-build-isolation -e ".[test]"
+	$(VPY) -m pip install -q ninja "cmake>=3.20" $$($(VPY) tools/pyproject-deps)
 	touch $@
 
-# The extension is rebuilt whenever the core or the bindings change.
+# The package, editable, with the C++ extension built in place; rebuilt whenever the core or
+# the bindings change. Needs the Debian packages (setup-demo installs them first).
 CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp)
 $(STAMP)/extension: $(STAMP)/venv $(CORE_SOURCES)
-	$(VPY) -m pip install -q --no-build-isolation --no-deps -e .
+	$(VPY) -m pip install -q --no-build-isolation -e .
+	touch $@
+
+# The test extras (pytest, ruff, hypothesis), for `make test` only.
+$(STAMP)/test-extras: $(STAMP)/extension pyproject.toml
+	reqs=$$($(VPY) tools/pyproject-deps test); \
+	if [ -n "$$reqs" ]; then $(VPY) -m pip install -q $$reqs; \
+	else $(VPY) -m pip install -q --no-build-isolation -e ".[test]"; fi
 	touch $@
 
 venv-demo: $(STAMP)/venv $(STAMP)/extension
