@@ -12,8 +12,8 @@ CTEST := $(VENV)/bin/ctest
 CHECK_DEPS := PYTHON=$(PYTHON) tools/check-build-deps
 STAMP := build/.stamps
 
-.PHONY: all demo test setup setup-demo deb deb-demo venv venv-demo cpp-test asan-test pytest \
-	lint firmware bench paper clean
+.PHONY: all demo test setup setup-demo deb deb-demo venv venv-demo venv-deps cpp-test \
+	asan-test pytest lint firmware bench paper clean
 
 all: test
 
@@ -27,10 +27,10 @@ test: setup cpp-test asan-test lint pytest
 # The Debian packages and the Python dependencies are installed in parallel (the virtual
 # environment needs only what is assumed), then the extension is built, which needs both.
 setup-demo:
-	@$(MAKE) --no-print-directory -j2 deb-demo $(STAMP)/venv
+	@$(MAKE) --no-print-directory -j2 deb-demo venv-deps
 	@$(MAKE) --no-print-directory venv-demo
 setup:
-	@$(MAKE) --no-print-directory -j2 deb $(STAMP)/venv
+	@$(MAKE) --no-print-directory -j2 deb venv-deps
 	@$(MAKE) --no-print-directory venv
 
 # Install only what is missing (a prepared machine pays nothing), then check that every tool
@@ -77,8 +77,12 @@ $(STAMP)/test-extras: $(STAMP)/extension pyproject.toml
 	else $(VPY) -m pip install -q --no-build-isolation -e ".[test]"; fi
 	touch $@
 
+venv-deps: $(STAMP)/venv
+	@:
 venv-demo: $(STAMP)/venv $(STAMP)/extension
+	@:
 venv: venv-demo $(STAMP)/test-extras
+	@:
 
 cpp-test: setup
 	$(CMAKE) --preset dev -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
