@@ -56,7 +56,7 @@ deb:
 
 # The virtual environment with the build tools and the package's dependencies (no compiler
 # needed yet).
-$(STAMP)/venv: pyproject.toml CMakeLists.txt
+$(STAMP)/venv: pyproject.toml
 	@$(CHECK_DEPS) base
 	@mkdir -p $(STAMP)
 	test -x $(VPY) || $(PYTHON) -m venv $(VENV)
@@ -65,8 +65,9 @@ $(STAMP)/venv: pyproject.toml CMakeLists.txt
 
 # The package, editable, with the C++ extension built in place; rebuilt whenever the core or
 # the bindings change. Needs the Debian packages (setup-demo installs them first).
-CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp)
-$(STAMP)/extension: $(STAMP)/venv $(CORE_SOURCES)
+CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp \
+	bindings/*.hpp)
+$(STAMP)/extension: $(STAMP)/venv CMakeLists.txt $(CORE_SOURCES)
 	$(VPY) -m pip install -q --no-build-isolation -e .
 	touch $@
 
