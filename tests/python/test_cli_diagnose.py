@@ -64,7 +64,8 @@ def test_diagnose_writes_json_and_report(
     assert status == 0, out.err
     assert "dead_time" in out.out
     doc = json.loads(json_path.read_text())
-    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"}
+    assert {"baseline", "steps", "effects", "final_rmse", "residual_white"} <= set(doc)
+    assert doc["verdict"] == "explained"
     assert doc["effects"] == ["dead_time"]
     assert doc["final_rmse"] <= 0.5 * doc["baseline"]["rmse"]
     assert (report_dir / REPORT_NAME).is_file()

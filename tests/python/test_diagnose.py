@@ -221,13 +221,24 @@ def test_pair_of_hidden_effects_is_named(effects: tuple[str, str], seed: int) ->
 def test_json_document_has_the_issue_schema() -> None:
     d, _ = _run(("extra_pole",), 41)
     doc = json.loads(json.dumps(d.to_json_dict(), allow_nan=False))
-    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"}
-    assert set(doc["baseline"]) == {"model", "params", "rmse", "fit_percent"}
+    # issue 5's document; issue 14 added the verdict, the noise, the remaining misfit, the final
+    # parameters and the units of every parameter
+    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"} | {
+        "verdict",
+        "misfit_to_noise",
+        "summary",
+        "noise",
+        "misfit",
+        "final_params",
+    }
+    assert set(doc["baseline"]) == {"model", "params", "rmse", "fit_percent", "units"}
     assert doc["baseline"]["model"] == "first_order"
     assert set(doc["baseline"]["params"]) == {"tau", "initial"}  # interpolated input
     assert doc["effects"] == [s["effect"] for s in doc["steps"]] == ["extra_pole"]
     for step in doc["steps"]:
-        assert set(step) == {"effect", "params", "rmse_before", "rmse_after", "evidence", "where"}
+        assert set(step) == {
+            *("effect", "params", "rmse_before", "rmse_after", "evidence", "where", "units")
+        }
         assert step["effect"] in dg.EFFECTS
         assert step["evidence"]["significant"] is True
         assert step["evidence"]["p_value"] < dg.SIGNIFICANCE_LEVEL

@@ -1,11 +1,16 @@
-"""The model family of the diagnosis, simulated exactly: first-order dynamics (or heating /
-cooling time constants), an optional extra pole and dead time, and the static map (gain,
-offset, Pt-100 curvature)."""
+"""Dynamic effects of constant time constants: the first-order baseline and its extensions
+``extra_pole`` (a second, faster stage), ``hysteresis`` (heating and cooling time constants)
+and ``dead_time`` (a transport delay), each with its exact simulation, parameters and size.
+
+Parameters (units in :data:`~dualprobe.diagnose.catalogue.UNITS`): ``tau`` or ``tau_heat`` /
+``tau_cool`` (s), ``tau2`` (s), ``delay`` (s), ``initial`` (degC), ``input_hold`` (1 when the
+reference is held over each sample interval, paper eq. 8, else interpolated linearly).
+"""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import numpy as np
 from scipy import signal
@@ -13,18 +18,29 @@ from scipy import signal
 from dualprobe._core import simulate_hysteretic_first_order as _core_hysteretic
 
 __all__ = [
-    "NONLINEARITY_ZERO",
-    "dynamics",
+    "DEAD_TIME_MIN_SAMPLES",
+    "delayed",
+    "first_order_foh",
+    "first_order_zoh",
     "hysteretic_first_order",
-    "simulate_effects",
+    "interval_means",
+    "main_tau",
+    "null_extension",
     "simulate_hysteretic",
-    "static_columns",
+    "size",
 ]
 
+# A dead time under half a sample cannot be told from where within the sample interval the gas
+# changed (interpolation puts every change mid-interval).
+DEAD_TIME_MIN_SAMPLES = 0.5
 
-# Zero of the curvature term other than 0 degC: the linear-alpha conversion is exact at 0 and
-# 100 degC (alpha is the mean slope over that interval).
-NONLINEARITY_ZERO = 100.0
+# Smallest size reported, about a quarter of the smallest realistic effect (issue 5: pole 8 % of
+# tau, heating/cooling 25 %, dead time 10 % of tau).
+MIN_SIZE = {
+    "extra_pole": 0.02,  # tau2 / tau
+    "hysteresis": 0.06,  # |tau_heat - tau_cool| / mean
+    "dead_time": 0.04,  # delay / tau, and at least DEAD_TIME_MIN_SAMPLES samples
+}
 
 
 def hysteretic_first_order(
@@ -57,7 +73,7 @@ def simulate_hysteretic(
     return np.asarray(_core_hysteretic(gas, float(ts), tau_heat, tau_cool, float(initial)))
 
 
-def _first_order_foh(v: np.ndarray, ts: float, tau: float, initial: float) -> np.ndarray:
+def first_order_foh(v: np.ndarray, ts: float, tau: float, initial: float) -> np.ndarray:
     """Exact response of 1/(1 + tau s) to the linearly interpolated input, state `initial` at
     the first sample: x(k) = a x(k-1) + b0 v(k) + b1 v(k-1)."""
     h = ts / tau
@@ -73,7 +89,7 @@ def _first_order_foh(v: np.ndarray, ts: float, tau: float, initial: float) -> np
     return out
 
 
-def _delayed(u: np.ndarray, delay_samples: float) -> np.ndarray:
+def delayed(u: np.ndarray, delay_samples: float) -> np.ndarray:
     """u(t - delay), linearly interpolated, held at u[0] before the record."""
     if delay_samples <= 0.0:
         return u
@@ -85,7 +101,7 @@ def _delayed(u: np.ndarray, delay_samples: float) -> np.ndarray:
     return (1.0 - frac) * now + frac * before
 
 
-def _first_order_zoh(
+def first_order_zoh(
     u: np.ndarray, ts: float, tau: float, initial: float, delay: float
 ) -> np.ndarray:
     """Exact response of exp(-delay s)/(1 + tau s) to the input held over each sample interval
@@ -106,55 +122,41 @@ def _first_order_zoh(
     return out
 
 
-def dynamics(u: np.ndarray, ts: float, p: Mapping[str, float]) -> np.ndarray:
-    """Sensor temperature x (before the static map) for the parameter set `p`.
-
-    The reference is interpolated linearly between samples, or held over each sample interval
-    when ``p["input_hold"]`` is set (data that follow the paper's eq. 8 exactly)."""
-    delay = p.get("delay", 0.0)
-    initial = p["initial"]
-    hold = bool(p.get("input_hold", 0.0))
-    if "tau_heat" in p:
-        v = _delayed(u, delay / ts)
-        if not hold:
-            # The core loop holds the gas over each interval; feeding it the interval mean of
-            # the interpolated reference makes it the same (to O(ts/tau)^2) as the linear model.
-            mid = np.empty_like(v)
-            mid[:-1] = 0.5 * (v[:-1] + v[1:])
-            mid[-1] = v[-1]
-            v = mid
-        x = simulate_hysteretic(v, ts, p["tau_heat"], p["tau_cool"], initial)
-    elif hold:
-        x = _first_order_zoh(u, ts, p["tau"], initial, delay)
-    else:
-        x = _first_order_foh(_delayed(u, delay / ts), ts, p["tau"], initial)
-    if "tau2" in p:
-        # the first stage's output is smooth: interpolating it is accurate in either case
-        x = _first_order_foh(x, ts, p["tau2"], initial)
-    return x
+def interval_means(v: np.ndarray) -> np.ndarray:
+    """Mean of the linearly interpolated input over each sample interval (last value repeated):
+    the direction-switched loops hold it, which makes them the linear model to O(ts/tau)^2."""
+    mid = np.empty_like(v)
+    mid[:-1] = 0.5 * (v[:-1] + v[1:])
+    mid[-1] = v[-1]
+    return mid
 
 
-def static_columns(x: np.ndarray, effects: Sequence[str]) -> list[tuple[str, np.ndarray]]:
-    columns = []
-    if "offset" in effects:
-        columns.append(("offset", np.ones_like(x)))
-    if "gain" in effects:
-        columns.append(("gain", x))
-    if "nonlinearity" in effects:
-        columns.append(("curvature", x * (x - NONLINEARITY_ZERO)))
-    return columns
+def main_tau(p: Mapping[str, float]) -> float:
+    """Main time constant: tau, or the smaller of the heating and cooling ones."""
+    return p["tau"] if "tau" in p else min(p["tau_heat"], p["tau_cool"])
 
 
-def simulate_effects(reference: np.ndarray, ts: float, params: Mapping[str, float]) -> np.ndarray:
-    """Simulated sensor output for a parameter set as reported by :func:`diagnose`.
+def null_extension(p: Mapping[str, float], effect: str) -> dict[str, float]:
+    """The extension at its null value: reproduces the current model (so a nested fit can only
+    improve on it)."""
+    q = dict(p)
+    if effect == "extra_pole":
+        q["tau2"] = 1e-3 * main_tau(q)
+    elif effect == "dead_time":
+        q["delay"] = 0.0
+    elif effect == "hysteresis":
+        tau = q.pop("tau")
+        q["tau_heat"] = q["tau_cool"] = tau
+    return q
 
-    Keys: ``initial`` and ``tau`` (or ``tau_heat`` and ``tau_cool``), optional ``tau2``,
-    ``delay`` (s), ``gain``, ``offset`` (K), ``curvature`` (1/K), and ``input_hold`` = 1 when
-    the reference is held over each sample interval (paper eq. 8) instead of interpolated."""
-    u = np.asarray(reference, dtype=float)
-    x = dynamics(u, ts, params)
-    return (
-        params.get("offset", 0.0)
-        + params.get("gain", 1.0) * x
-        + params.get("curvature", 0.0) * x * (x - NONLINEARITY_ZERO)
-    )
+
+def size(effect: str, p: Mapping[str, float], tau: float, ts: float) -> float:
+    """Size of `effect` in units of its smallest reported size (dead time: of the larger of its
+    two floors), so that >= 1 passes."""
+    if effect == "extra_pole":
+        return p["tau2"] / main_tau(p) / MIN_SIZE["extra_pole"]
+    if effect == "hysteresis":
+        diff = abs(p["tau_heat"] - p["tau_cool"]) / (0.5 * (p["tau_heat"] + p["tau_cool"]))
+        return diff / MIN_SIZE["hysteresis"]
+    floor = max(MIN_SIZE["dead_time"] * tau, DEAD_TIME_MIN_SAMPLES * ts)
+    return p["delay"] / floor
