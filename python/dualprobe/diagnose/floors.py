@@ -4,10 +4,11 @@ logger's grid, or as given) and the sampling floor of a gas that changes between
 interpolation between samples cannot follow).
 
 The noise of a channel is estimated from its second differences (``models.noise``, the one
-estimator) on the rows at which the logger refreshed it (every ``k``-th row when the reading is
-held), never below the rounding error of its grid, ``q / sqrt(12)``; when most differences are
-exactly zero (a reading finer than its noise cannot be, noise-free data) only that floor is
-left, and nothing is ever below :data:`RESOLUTION`.
+estimator, with its quantisation floor) on the rows at which the logger refreshed it (every
+``k``-th row when the reading is held), never below the rounding error of its grid,
+``q / sqrt(12)``; when most second differences are exactly zero (noise below the reading's
+resolution, noise-free data) only that floor is left, and nothing is ever below
+:data:`RESOLUTION`. The output's level is refined on the residual of the baseline fit.
 """
 
 from __future__ import annotations
@@ -19,14 +20,14 @@ import numpy as np
 from scipy import signal
 
 from dualprobe.diagnose.catalogue.logger import Grid, Hold, detect_grid, detect_hold
-from dualprobe.models.noise import ORDER_DIAGNOSE, estimate_noise_std, quantisation_floor
+from dualprobe.models.noise import ORDER_DIAGNOSE, estimate_noise_std
 
 __all__ = [
     "RESOLUTION",
     "ChannelNoise",
     "Floor",
     "channel_noise",
-    "jump_neighbourhood",
+    "jump_density",
     "refine_noise",
     "roughness_floor",
     "sampling_floor",
@@ -60,9 +61,10 @@ def channel_noise(x: np.ndarray, given: float | None = None) -> ChannelNoise:
     if float(np.median(np.abs(d - np.median(d)))) > 0.0:
         std, source = estimate_noise_std(series, ORDER_DIAGNOSE), "differences"
     else:
-        # Most differences exactly zero: the noise is below the reading's resolution; the RMS
-        # of the differences would measure the signal's changes, not noise.
-        std, source = quantisation_floor(series), "grid"
+        # Most differences exactly zero: the noise is below the reading's resolution (the grid
+        # below, or the resolution floor); the RMS of the differences, or the smallest step,
+        # would measure the signal's changes (a noise-free step), not noise.
+        std, source = 0.0, "resolution"
     if grid is not None and grid.floor > std:
         std, source = grid.floor, "grid"
     if std < RESOLUTION:
@@ -72,43 +74,45 @@ def channel_noise(x: np.ndarray, given: float | None = None) -> ChannelNoise:
 
 @dataclass(frozen=True)
 class Floor:
-    """Mean squares (K^2) a perfect model leaves: white noise of both signals everywhere, the
-    residue of gas jumps between samples in the few time constants after each jump
-    (`near_jumps`), the roughness of a continuous input everywhere."""
+    """Mean squares (K^2) a perfect model leaves: white noise of both signals and the roughness
+    of a continuous input everywhere, and the residue of each gas jump between samples where it
+    lives, decaying as exp(-2 t / tau) after the jump (`jump_density`, K^2 per row; its mean is
+    `jumps`)."""
 
     white: float
     jumps: float  # averaged over the record
     roughness: float
-    near_jumps: np.ndarray  # rows within JUMP_SETTLING time constants after a jump
+    jump_density: np.ndarray
 
     @property
     def total(self) -> float:
         return self.white + self.jumps + self.roughness
 
     def regions(self) -> dict[str, tuple[np.ndarray, float]]:
-        """Rows and floor of the parts of the record with their own floor: away from the jumps
-        (white noise and roughness only) and after them (plus the jumps' residue there)."""
-        near = self.near_jumps
-        count = int(near.sum())
-        away = self.white + self.roughness
-        out = {"away_from_jumps": (~near, away)}
-        if count:
-            out["after_jumps"] = (near, away + self.jumps * near.size / count)
+        """Rows and floor of the parts of the record with their own floor: where the jumps'
+        residue exceeds the white noise (the first time constants after large jumps) and the
+        rest."""
+        near = self.jump_density > self.white
+        out = {}
+        for name, rows in (("away_from_jumps", ~near), ("after_jumps", near)):
+            if np.any(rows):
+                level = self.white + self.roughness + float(np.mean(self.jump_density[rows]))
+                out[name] = (rows, level)
         return out
 
 
-# A jump's residue decays as exp(-t/tau): 5 tau hold all but e^-10 of its energy.
-JUMP_SETTLING = 5.0
-
-
-def jump_neighbourhood(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> np.ndarray:
-    """Rows within JUMP_SETTLING time constants after a jump of the reference."""
-    mark = np.zeros(u.size + 1)
-    span = math.ceil(JUMP_SETTLING * tau / ts) + 2
-    for start, _, _ in _jumps(u, sigma_u):
-        mark[start] += 1.0
-        mark[min(start + span, u.size)] -= 1.0
-    return np.cumsum(mark[:-1]) > 0.0
+def jump_density(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> np.ndarray:
+    """The jumps' residue per row: each jump's energy (see :func:`sampling_floor`) spread over
+    the rows after it as the square of a first-order transient, (2/tau) exp(-2 t/tau)."""
+    out = np.zeros(u.size)
+    span = min(math.ceil(10.0 * tau / ts) + 1, u.size)
+    decay = np.exp(-2.0 * np.arange(span) * ts / tau)
+    shape = decay / (ts * float(np.sum(decay)))  # sum(shape) ts = 1: the energy is kept
+    for start, _, jump in _jumps(u, sigma_u):
+        energy = ts**2 / 12.0 * jump**2 / (2.0 * tau)  # K^2 s
+        seg = min(span, u.size - start)
+        out[start : start + seg] += energy * shape[:seg]
+    return out
 
 
 def refine_noise(noise: ChannelNoise, residual: np.ndarray) -> ChannelNoise:
@@ -139,23 +143,39 @@ def sensor_noise_gain(ts: float, tau: float) -> float:
 
 
 def _jumps(u: np.ndarray, sigma_u: float) -> list[tuple[int, int, float]]:
-    """Jumps of the reference: runs of at most 3 differences above 10 noise standard deviations
-    of a difference (a reference with a lag of a fraction of a sample spreads a jump over two or
-    three), isolated: 3x larger than the differences around it. Longer runs are ramps, which
-    interpolation follows."""
+    """Jumps of the reference, as (first difference, end, size).
+
+    Within each run of differences above 10 noise standard deviations of a difference, a jump
+    is the largest difference with its neighbours down to 2 % of it (a reference that lags by a
+    fraction of a sample spreads a jump over two or three), at most 3 differences, that is 3x
+    larger than the differences around it; a run may hold several (a jump into a fluctuation or
+    a ramp), a ramp none (its differences are alike, and interpolation follows it)."""
     du = np.diff(u)
     size = np.abs(du)
     big = size > max(10.0 * math.sqrt(2.0) * sigma_u, 1e-9)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], big.astype(np.int8), [0]))))
     out = []
     for start, end in zip(edges[::2], edges[1::2], strict=True):
-        if end - start > 3:
-            continue
-        jump = float(np.sum(du[start:end]))
-        around = max(size[start - 1] if start > 0 else 0.0, size[end] if end < size.size else 0.0)
-        if abs(jump) > 3.0 * around:
-            out.append((int(start), int(end), jump))
-    return out
+        free = np.ones(end - start, dtype=bool)
+        while np.any(free):
+            k = start + int(np.argmax(np.where(free, size[start:end], -1.0)))
+            lo, hi = k, k + 1
+            while (
+                hi - lo < 3
+                and lo > start
+                and free[lo - 1 - start]
+                and size[lo - 1] > 0.02 * size[k]
+            ):
+                lo -= 1
+            while hi - lo < 3 and hi < end and free[hi - start] and size[hi] > 0.02 * size[k]:
+                hi += 1
+            free[lo - start : hi - start] = False
+            around = max(size[lo - 1] if lo > 0 else 0.0, size[hi] if hi < size.size else 0.0)
+            jump = float(np.sum(du[lo:hi]))
+            if abs(jump) <= 3.0 * around:
+                break  # the largest left is not a jump: neither is anything smaller
+            out.append((int(lo), int(hi), jump))
+    return sorted(out)
 
 
 def sampling_floor(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> float:

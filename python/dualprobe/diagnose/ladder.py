@@ -16,7 +16,6 @@ from dualprobe.diagnose.fit import ModelFit, Problem, fit_model
 from dualprobe.diagnose.localise import window_regime
 from dualprobe.diagnose.residuals import direction_masks, disagreement_windows
 from dualprobe.diagnose.result import Step
-from dualprobe.diagnose.starts import candidate_starts
 
 __all__ = [
     "PAIR_PARTNERS",
@@ -128,11 +127,9 @@ def pair_search(
         a, b = sorted((first, second), key=lambda e: -candidates[e][1]["gap_closed"])
         effects = (*current.effects, a, b)
         fit_a, fit_b = candidates[a][0], candidates[b][0]
-        starts = [
-            *candidate_starts(problem, fit_b, a, effects),
-            *candidate_starts(problem, fit_a, b, effects),
-        ]
-        both = fit_model(problem, effects, starts)
+        # each alone has already been fitted from its scan; the static one is solved exactly
+        # for any dynamics: the two single fits are the starts
+        both = fit_model(problem, effects, [fit_a.params, fit_b.params])
         joint = judge.evidence((a, b), current, both)
         if not joint["significant"] or (best is not None and joint["gap_closed"] <= best[0]):
             continue

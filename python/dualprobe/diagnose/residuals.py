@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy import fft as sp_fft
 from scipy import stats
 
 __all__ = [
@@ -35,9 +36,10 @@ def _autocorrelation(r: np.ndarray, max_lag: int) -> np.ndarray:
     """Biased sample autocorrelation, lags 0..max_lag (FFT)."""
     r = r - r.mean()
     n = r.size
-    size = 1 << (2 * n - 1).bit_length()
-    spectrum = np.fft.rfft(r, size)
-    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1] / n
+    # zero padding to n + max_lag makes the circular correlation exact up to max_lag
+    size = sp_fft.next_fast_len(n + max_lag + 1, real=True)
+    spectrum = sp_fft.rfft(r, size)
+    acov = sp_fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1] / n
     if acov[0] <= 0:
         return np.zeros(max_lag + 1)
     return acov / acov[0]
@@ -102,9 +104,13 @@ def residual_tests(
 
 
 def moving_mean(x: np.ndarray, width: int) -> np.ndarray:
+    """Centred moving mean over `width` samples; near the ends, over the samples there are
+    (not pulled towards 0 by zero padding)."""
     width = max(int(width), 1)
-    kernel = np.ones(width) / width
-    return np.convolve(x, kernel, mode="same")
+    kernel = np.ones(width)
+    total = np.convolve(x, kernel, mode="same")
+    count = np.convolve(np.ones(x.size), kernel, mode="same")
+    return total / count
 
 
 def direction_masks(

@@ -20,7 +20,7 @@ from dualprobe.diagnose.floors import (
     ChannelNoise,
     Floor,
     channel_noise,
-    jump_neighbourhood,
+    jump_density,
     refine_noise,
     roughness_floor,
     sampling_floor,
@@ -184,26 +184,25 @@ def diagnose(
     sigma = math.sqrt(white_floor)
     data = (u, t, ts, sigma)
 
-    def refit(fit: ModelFit, fixed: dict[str, float]) -> ModelFit:
-        problem.fixed = fixed
-        return fit_model(problem, fit.effects, [fit.params])
-
     def convention(fit: ModelFit) -> ModelFit:
         """Sampling convention: the reference interpolated between samples (continuous gas) or
-        held over each interval (data that follow the paper's eq. 8): same parameters, fitted
-        under both; the held one wins only by a significant likelihood ratio (under a poor
-        model the two differ by chance). Re-decided with every model, since a large missing
-        effect can hide the half-sample difference. Gas changes between samples leave a
-        residue (the sampling floor) only when the reference is interpolated."""
-        interpolated, held = refit(fit, {}), refit(fit, {"input_hold": 1.0})
-        horizon = round(3.0 * held.tau / ts)
-        lr = effective_size(held.residual, horizon) * math.log(
-            interpolated.mse / max(held.mse, 1e-300)
-        )
-        chosen = held if lr > judge.chi2_threshold else interpolated
-        problem.fixed = {"input_hold": 1.0} if chosen is held else {}
+        held over each interval (data that follow the paper's eq. 8): same parameters, the better
+        fit wins (by a significant likelihood ratio, else the fit's own convention stays).
+        Re-decided with every model, since a large missing effect can hide the half-sample
+        difference. Gas changes between samples leave a residue (the sampling floor) only when
+        the reference is interpolated."""
+        own = {"input_hold": 1.0} if fit.params.get("input_hold") else {}
+        problem.fixed = {} if own else {"input_hold": 1.0}
+        other = fit_model(problem, fit.effects, [fit.params])
+        # switch only on evidence: under a poor model the two differ by chance
+        horizon = round(3.0 * other.tau / ts)
+        lr = effective_size(other.residual, horizon) * math.log(fit.mse / max(other.mse, 1e-300))
+        if lr > judge.chi2_threshold:
+            fit = other
+        else:
+            problem.fixed = own
         judge.floor = white_floor + (0.0 if problem.fixed else jumps + rough)
-        return chosen
+        return fit
 
     def settle(steps: list[Step], current: ModelFit) -> ModelFit:
         """Re-decide the convention with the model just reached; update its step if it moved."""
@@ -317,7 +316,9 @@ def diagnose(
         white=white_floor,
         jumps=jumps if interpolated else 0.0,
         roughness=rough if interpolated else 0.0,
-        near_jumps=jump_neighbourhood(u, ts, baseline.tau, sigma_u),
+        jump_density=jump_density(u, ts, baseline.tau, sigma_u)
+        if interpolated
+        else np.zeros(u.size),
     )
     named = [s.effect for s in steps]
     verdict = decide(
