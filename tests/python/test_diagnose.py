@@ -305,12 +305,12 @@ def test_no_excitation_is_an_estimation_error(rng: np.random.Generator) -> None:
 @pytest.mark.slow
 def test_one_hour_recording_performance() -> None:
     case = make_case(("extra_pole", "hysteresis"), 51, duration=3600.0)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     d = dg.diagnose(case.reference, case.measured, case.ts)
-    elapsed = time.perf_counter() - start
-    # the claim (< 10 s on the 2-core machine) is printed, not asserted: shared-load dependent
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+    # the claim (<= 5 s on the 2-core machine) is printed, not asserted: shared-load dependent
     print(
         f"\none-hour 10 Hz recording ({case.measured.size} samples) diagnosed in "
-        f"{elapsed:.2f} s; found {d.effects}"
+        f"{elapsed:.2f} s ({cpu:.2f} s CPU); found {d.effects}"
     )
     assert sorted(d.effects) == ["extra_pole", "hysteresis"]

@@ -168,7 +168,7 @@ def test_report_regimes_units_and_one_delta_bic_sign(tmp_path: Path) -> None:
     doc = d.to_json_dict()
     assert doc["steps"][-1]["units"]["hold_samples"] == "samples"
     assert doc["baseline"]["units"]["tau"] == "s"
-    assert doc["verdict"] == d.verdict.verdict if d.verdict else False
+    assert d.verdict is not None and doc["verdict"] == d.verdict.verdict
     assert doc["misfit"]["misfit_to_noise"] == pytest.approx(doc["misfit_to_noise"])
 
 

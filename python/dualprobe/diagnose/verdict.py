@@ -152,7 +152,11 @@ def decide(
             )
     else:
         effects = ", ".join(named)
-        change = f"the residual falls from {baseline_rmse:.3g} to {final_rmse:.3g} K RMS"
+        change = (
+            f"the residual falls from {baseline_rmse:.3g} to {final_rmse:.3g} K RMS"
+            if final_rmse < baseline_rmse
+            else f"the residual stays at {final_rmse:.3g} K RMS (the grid sets the floor)"
+        )
         if structured:
             verdict = "partly_explained"
             sentence = (

@@ -80,11 +80,11 @@ UNITS = {
     "level_exponent": "1",
     "level_reference": "K",
     "hold_samples": "samples",
-    "hold_phase": "sample",
+    "hold_phase": "row index",
     "quantisation_step": "K",
     "quantisation_floor": "K",
     "initial": "degC",
-    "input_hold": "flag",
+    "input_hold": "",  # 1: the reference is held over each sample interval (paper eq. 8)
 }
 
 _KEYS = {
