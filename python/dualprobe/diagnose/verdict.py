@@ -139,8 +139,8 @@ def decide(
         if structured:
             verdict = "unexplained"
             sentence = (
-                f"Unexplained: the first-order model leaves a structured misfit of {ratio:.3g} x "
-                f"{noise} ({final_rmse:.3g} K RMS) that no catalogue effect reduces{where}."
+                f"Unexplained: the first-order model leaves {final_rmse:.3g} K RMS, a structured "
+                f"misfit of {ratio:.3g} x {noise} that no catalogue effect reduces{where}."
             )
         else:
             verdict = "nothing_missing"
