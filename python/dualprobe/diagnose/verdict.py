@@ -3,15 +3,16 @@
 ``misfit_to_noise`` = RMS of the residual / RMS a perfect model would leave (the noise floor:
 the output's white noise, the reference's noise through the sensor, and the sampling floor of
 gas changes between samples), in the worse of two parts of the record that have different
-floors: away from the reference's jumps (white noise and the input's roughness) and within five
-time constants after them (plus the residue of jumps at unknown instants between samples, which
-lives there). A part needs 200 rows and 5 % of the record; with neither, the whole record is
-judged against the mean floor. A residual is a *structured misfit* when both
+floors: where the residue of the reference's jumps at unknown instants between samples, decaying
+as exp(-2 t / tau) after each, exceeds the white noise (white noise, roughness and that residue)
+and the rest (white noise and roughness). A part needs 200 rows and 5 % of the record; with
+neither, the whole record is judged against the mean floor. A residual is a *structured misfit*
+when both
 
 - it is at least twice the floor: ``misfit_to_noise`` > :data:`MISFIT_LIMIT` = 2 (its part the
   floor does not account for is then over sqrt(3) = 1.7 times the floor, three times its
   variance: "several times the noise"). The floor is exact for a reference that samples the gas
-  ideally; a reference that lags by 10-40 ms leaves up to 1.5 times it in the first-order
+  ideally; a reference that lags by 10-40 ms leaves up to 1.4 times it in the first-order
   controls of the test generators (the ramps and jumps it rounds), so a limit nearer 1 would
   call a good sensor unexplained; and
 - it is not white: Ljung-Box over 25 lags rejects whiteness at 1 % (the 99 % band of the
