@@ -10,6 +10,7 @@ namespace dualprobe_bindings {
 
 void bind_svf(pybind11::module_& m);
 void bind_kalman(pybind11::module_& m);
+void bind_varying(pybind11::module_& m);
 
 // NumPy array of S: taken without a copy when the dtype and layout already match.
 template <typename S>

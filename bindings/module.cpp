@@ -198,4 +198,5 @@ PYBIND11_MODULE(_core, m) {
       "tg"_a, "ts"_a, "tau_heat"_a, "tau_cool"_a, "initial"_a);
   dualprobe_bindings::bind_svf(m);
   dualprobe_bindings::bind_kalman(m);
+  dualprobe_bindings::bind_varying(m);
 }

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['DifferenceEstimator', 'DifferenceEstimatorF', 'KalmanReconstructor', 'KalmanReconstructorF', 'SvfEstimator', 'SvfEstimatorF', 'estimate_difference', 'estimate_svf', 'kalman_filter', 'reconstruct_inverse', 'simulate_hysteretic_first_order']
+__all__: list[str] = ['DifferenceEstimator', 'DifferenceEstimatorF', 'KalmanReconstructor', 'KalmanReconstructorF', 'SvfEstimator', 'SvfEstimatorF', 'estimate_difference', 'estimate_svf', 'kalman_filter', 'reconstruct_inverse', 'simulate_hysteretic_first_order', 'simulate_switched_first_order']
 class DifferenceEstimator:
     """
     Streaming difference-equation dual-sensor estimator (paper eqs. 10-12).
@@ -311,3 +311,7 @@ def simulate_hysteretic_first_order(tg: numpy.typing.NDArray[numpy.float32], ts:
 @typing.overload
 def simulate_hysteretic_first_order(tg: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tau_heat: typing.SupportsFloat | typing.SupportsIndex, tau_cool: typing.SupportsFloat | typing.SupportsIndex, initial: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     ...
+def simulate_switched_first_order(drive: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], a_heat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], f_heat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], a_cool: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], f_cool: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], initial: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    First-order recursion with coefficients per sample interval, switched by the direction of heat flow: out[0] = initial, out[k+1] = a_heat[k] out[k] + f_heat[k] if drive[k] > out[k], else a_cool[k] out[k] + f_cool[k]. Returns len(drive) + 1 values.
+    """
