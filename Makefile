@@ -1,4 +1,5 @@
-# dualprobe: every target does its own set-up on a fresh Debian machine (root for apt-get).
+# dualprobe: every target does its own set-up on a fresh Debian 12 machine (root or sudo for
+# apt-get; python3, python3-venv, git, make, ca-certificates assumed: README).
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 PYTHON ?= python3
@@ -6,24 +7,36 @@ VENV := .venv
 VPY := $(VENV)/bin/python
 CMAKE := $(VENV)/bin/cmake
 CTEST := $(VENV)/bin/ctest
-DEB_PACKAGES := make g++ libeigen3-dev libgtest-dev clang gcc-arm-none-eabi \
-	libstdc++-arm-none-eabi-newlib libnewlib-arm-none-eabi qemu-system-arm
+# The Debian packages: tools/build-deps.txt, the one list (`make demo` installs the demo set,
+# `make test` and the other targets the test set, which includes the demo set).
+CHECK_DEPS := PYTHON=$(PYTHON) tools/check-build-deps
 STAMP := build/.stamps
 
-.PHONY: all demo test setup deb venv cpp-test asan-test pytest lint stubs firmware bench paper clean
+.PHONY: all demo test setup setup-demo deb deb-demo venv venv-demo venv-deps cpp-test \
+	asan-test pytest lint stubs firmware bench paper clean
 
 all: test
 
-demo: setup
+demo: setup-demo
 	$(VENV)/bin/dualprobe demo --out out/demo
 
 test: setup cpp-test asan-test lint pytest
 
-setup: deb venv
+# setup-demo: a C++ compiler, Eigen, Python headers and the package (no test extras);
+# setup: everything the tests use (clang and its fuzzer runtime, the ARM toolchain, QEMU, ...).
+# The Debian packages and the Python dependencies are installed in parallel (the virtual
+# environment needs only what is assumed), then the extension is built, which needs both.
+setup-demo:
+	@$(MAKE) --no-print-directory -j2 deb-demo venv-deps
+	@$(MAKE) --no-print-directory venv-demo
+setup:
+	@$(MAKE) --no-print-directory -j2 deb venv-deps
+	@$(MAKE) --no-print-directory venv
 
-# Install only what is missing, so a prepared machine pays nothing.
-deb:
-	@missing=""; for p in $(DEB_PACKAGES); do \
+# Install only what is missing (a prepared machine pays nothing), then check that every tool
+# and runtime file is really there: a missing one stops here with one line naming its package.
+define install-debs
+	@missing=""; for p in $$(tools/check-build-deps --packages $(1)); do \
 	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "install ok installed" || missing="$$missing $$p"; \
 	done; \
 	if [ -n "$$missing" ]; then \
@@ -32,22 +45,45 @@ deb:
 	  $$SUDO apt-get update -qq; \
 	  DEBIAN_FRONTEND=noninteractive $$SUDO apt-get install -y -qq --no-install-recommends $$missing >/dev/null; \
 	fi
+	@$(CHECK_DEPS) $(1)
+endef
 
-$(STAMP)/venv: pyproject.toml CMakeLists.txt
+deb-demo:
+	$(call install-debs,demo)
+
+deb:
+	$(call install-debs,test)
+
+# The virtual environment with the build tools and the package's dependencies (no compiler
+# needed yet).
+$(STAMP)/venv: pyproject.toml
+	@$(CHECK_DEPS) base
 	@mkdir -p $(STAMP)
 	test -x $(VPY) || $(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install -q --upgrade pip
-	$(VPY) -m pip install -q "scikit-build-core>=0.10" "pybind11>=3" ninja "cmake>=3.20"
-	$(VPY) -m pip install -q --no-build-isolation -e ".[test]"
-	touch $@ $(STAMP)/extension
-
-# The extension is rebuilt whenever the core or the bindings change.
-CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp)
-$(STAMP)/extension: $(STAMP)/venv $(CORE_SOURCES)
-	$(VPY) -m pip install -q --no-build-isolation --no-deps -e .
+	$(VPY) -m pip install -q ninja "cmake>=3.20" $$($(VPY) tools/pyproject-deps)
 	touch $@
 
-venv: $(STAMP)/venv $(STAMP)/extension
+# The package, editable, with the C++ extension built in place; rebuilt whenever the core or
+# the bindings change. Needs the Debian packages (setup-demo installs them first).
+CORE_SOURCES := $(wildcard cpp/include/dualprobe/*.hpp cpp/include/dualprobe/*.h bindings/*.cpp \
+	bindings/*.hpp)
+$(STAMP)/extension: $(STAMP)/venv CMakeLists.txt $(CORE_SOURCES)
+	$(VPY) -m pip install -q --no-build-isolation -e .
+	touch $@
+
+# The test extras (pytest, ruff, hypothesis), for `make test` only.
+$(STAMP)/test-extras: $(STAMP)/extension pyproject.toml
+	reqs=$$($(VPY) tools/pyproject-deps test); \
+	if [ -n "$$reqs" ]; then $(VPY) -m pip install -q $$reqs; \
+	else $(VPY) -m pip install -q --no-build-isolation -e ".[test]"; fi
+	touch $@
+
+venv-deps: $(STAMP)/venv
+	@:
+venv-demo: $(STAMP)/venv $(STAMP)/extension
+	@:
+venv: venv-demo $(STAMP)/test-extras
+	@:
 
 cpp-test: setup
 	$(CMAKE) --preset dev -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
@@ -77,10 +113,10 @@ pytest: setup
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
 
-bench: setup
+bench: setup-demo
 	$(VENV)/bin/dualprobe bench --json out/bench.json
 
-paper: setup
+paper: setup-demo
 	$(VENV)/bin/dualprobe paper --out out/paper --json out/paper/paper.json
 
 clean:

@@ -13,6 +13,7 @@ void bind_kalman(pybind11::module_& m);
 void bind_svf_filter(pybind11::module_& m);
 void bind_banded(pybind11::module_& m);
 void bind_intervals(pybind11::module_& m);
+void bind_varying(pybind11::module_& m);
 
 // NumPy array of S: taken without a copy when the dtype and layout already match.
 template <typename S>

@@ -201,4 +201,5 @@ PYBIND11_MODULE(_core, m) {
   dualprobe_bindings::bind_svf_filter(m);
   dualprobe_bindings::bind_banded(m);
   dualprobe_bindings::bind_intervals(m);
+  dualprobe_bindings::bind_varying(m);
 }

@@ -11,6 +11,7 @@ import pytest
 from dualprobe.cli import main
 from dualprobe.diagnose import FIGURES, REPORT_NAME
 from hidden_effects import make_case
+from hidden_field import make_field_case, make_logger_case
 
 
 def _write_csv(path: Path, columns: dict[str, np.ndarray], fmt: str = "%.5f") -> Path:
@@ -64,7 +65,8 @@ def test_diagnose_writes_json_and_report(
     assert status == 0, out.err
     assert "dead_time" in out.out
     doc = json.loads(json_path.read_text())
-    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"}
+    assert {"baseline", "steps", "effects", "final_rmse", "residual_white"} <= set(doc)
+    assert doc["verdict"] == "explained"
     assert doc["effects"] == ["dead_time"]
     assert doc["final_rmse"] <= 0.5 * doc["baseline"]["rmse"]
     assert (report_dir / REPORT_NAME).is_file()
@@ -135,3 +137,115 @@ def test_no_excitation_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str
     )
     assert main(["diagnose", str(flat), "--input", "T_ref", "--output", "T_m"]) == 3
     assert "cannot be identified" in _one_error_line(capsys)
+
+
+# --- issue 14: flow, noise level, logger data -------------------------------------------------
+
+
+def test_flow_column_and_noise_level(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    case = make_field_case(("flow_dependence",), 2, duration=600.0)
+    path = _write_csv(
+        tmp_path / "drive.csv",
+        {"t": case.t, "T_ref": case.reference, "T_m": case.measured, "v": case.flow},
+        fmt="%.6f",
+    )
+    json_path = tmp_path / "out.json"
+    args = ["diagnose", str(path), "--input", "T_ref", "--output", "T_m", "--flow", "v"]
+    assert main([*args, "--json", str(json_path)]) == 0, capsys.readouterr().err
+    out = capsys.readouterr().out
+    assert "flow_dependence" in out and "flow_exponent = " in out
+    assert out.splitlines()[-1].startswith("verdict: explained.")
+    doc = json.loads(json_path.read_text())
+    assert doc["effects"] == ["flow_dependence"]
+    assert doc["steps"][0]["units"]["flow_reference"] == "flow unit"
+    # without --flow the effect cannot be named, and the verdict does not hide that
+    assert (
+        main(
+            [
+                "diagnose",
+                str(path),
+                "--input",
+                "T_ref",
+                "--output",
+                "T_m",
+                "--quiet",
+                "--json",
+                str(json_path),
+            ]
+        )
+        == 0
+    )
+    assert json.loads(json_path.read_text())["verdict"] != "nothing_missing"
+    assert main([*args, "--noise-std", "0.05,0.06", "--json", str(json_path)]) == 0
+    noise = json.loads(json_path.read_text())["noise"]
+    assert (noise["reference_std"], noise["measured_std"]) == (0.05, 0.06)
+    assert noise["measured_source"] == "given"
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--noise-std", "0"], "--noise-std"),
+        (["--noise-std", "-0.1"], "--noise-std"),
+        (["--noise-std", "a,b"], "--noise-std"),
+        (["--noise-std", "0.1,0.1,0.1"], "--noise-std"),
+        (["--flow", "T_ref"], "--flow"),
+        (["--flow", "nope"], "nope"),
+        (["--flow", "bad"], "flow sample 5"),
+    ],
+)
+def test_bad_flow_or_noise_exit_2_with_one_line(
+    tmp_path: Path, extra: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    case = make_field_case((), 3, conditions="drive", duration=60.0)
+    bad = case.flow.copy()
+    bad[5] = -1.0
+    path = _write_csv(
+        tmp_path / "d.csv",
+        {"t": case.t, "T_ref": case.reference, "T_m": case.measured, "v": case.flow, "bad": bad},
+    )
+    assert main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m", *extra]) == 2
+    assert message in _one_error_line(capsys)
+
+
+def test_logger_data_quantised_and_held(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A thermocouple plunge from a logger: 15 ms rows, 0.25 K steps, the reading held for 5
+    rows (issue 14's ZeroDivisionError): exit 0, the hold and the grid named."""
+    case = make_logger_case(4)
+    path = _write_csv(
+        tmp_path / "plunge.csv",
+        {"t": case.t, "T_ref": case.reference, "T_m": case.measured},
+        fmt="%.3f",
+    )
+    assert main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m"]) == 0
+    captured = capsys.readouterr()
+    assert captured.err == ""
+    assert "+ sample_and_hold (hold_samples = 5 samples" in captured.out
+    assert "+ quantisation (quantisation_step = 0.25 K" in captured.out
+    assert "verdict: " in captured.out
+
+
+@pytest.mark.parametrize("kind", ["noise-free", "held-both", "quantised-coarse", "flat"])
+def test_no_internal_error_on_degenerate_data(
+    tmp_path: Path, kind: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    case = make_field_case((), 8, duration=120.0)
+    u, y = case.reference, case.measured
+    if kind == "noise-free":
+        u = case.gas
+        y = np.interp(case.t, case.t, case.gas)  # the gas itself: a sensor without lag
+    elif kind == "held-both":
+        u, y = np.repeat(u[::4], 4)[: u.size], np.repeat(y[::4], 4)[: y.size]
+    elif kind == "quantised-coarse":
+        u, y = np.round(u / 2.0) * 2.0, np.round(y / 2.0) * 2.0
+    else:
+        u = y = np.full(u.size, 21.5)
+    path = _write_csv(tmp_path / f"{kind}.csv", {"t": case.t, "a": u, "b": y}, fmt="%.4f")
+    status = main(["diagnose", str(path), "--input", "a", "--output", "b"])
+    captured = capsys.readouterr()
+    assert status in (0, 2, 3), captured.err
+    assert "internal" not in captured.err
+    if status:
+        assert len(captured.err.strip().splitlines()) == 1
+    else:
+        assert "verdict: " in captured.out

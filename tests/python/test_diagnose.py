@@ -221,13 +221,24 @@ def test_pair_of_hidden_effects_is_named(effects: tuple[str, str], seed: int) ->
 def test_json_document_has_the_issue_schema() -> None:
     d, _ = _run(("extra_pole",), 41)
     doc = json.loads(json.dumps(d.to_json_dict(), allow_nan=False))
-    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"}
-    assert set(doc["baseline"]) == {"model", "params", "rmse", "fit_percent"}
+    # issue 5's document; issue 14 added the verdict, the noise, the remaining misfit, the final
+    # parameters and the units of every parameter
+    assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"} | {
+        "verdict",
+        "misfit_to_noise",
+        "summary",
+        "noise",
+        "misfit",
+        "final_params",
+    }
+    assert set(doc["baseline"]) == {"model", "params", "rmse", "fit_percent", "units"}
     assert doc["baseline"]["model"] == "first_order"
     assert set(doc["baseline"]["params"]) == {"tau", "initial"}  # interpolated input
     assert doc["effects"] == [s["effect"] for s in doc["steps"]] == ["extra_pole"]
     for step in doc["steps"]:
-        assert set(step) == {"effect", "params", "rmse_before", "rmse_after", "evidence", "where"}
+        assert set(step) == {
+            *("effect", "params", "rmse_before", "rmse_after", "evidence", "where", "units")
+        }
         assert step["effect"] in dg.EFFECTS
         assert step["evidence"]["significant"] is True
         assert step["evidence"]["p_value"] < dg.SIGNIFICANCE_LEVEL
@@ -294,12 +305,12 @@ def test_no_excitation_is_an_estimation_error(rng: np.random.Generator) -> None:
 @pytest.mark.slow
 def test_one_hour_recording_performance() -> None:
     case = make_case(("extra_pole", "hysteresis"), 51, duration=3600.0)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), time.process_time()
     d = dg.diagnose(case.reference, case.measured, case.ts)
-    elapsed = time.perf_counter() - start
-    # the claim (< 10 s on the 2-core machine) is printed, not asserted: shared-load dependent
+    elapsed, cpu = time.perf_counter() - start, time.process_time() - cpu
+    # the claim (<= 5 s on the 2-core machine) is printed, not asserted: shared-load dependent
     print(
         f"\none-hour 10 Hz recording ({case.measured.size} samples) diagnosed in "
-        f"{elapsed:.2f} s; found {d.effects}"
+        f"{elapsed:.2f} s ({cpu:.2f} s CPU); found {d.effects}"
     )
     assert sorted(d.effects) == ["extra_pole", "hysteresis"]

@@ -182,6 +182,11 @@ def test_paper_command_writes_figures_and_report(quick_run: tuple[Path, int]) ->
     assert "## Beyond the paper" in report and "XYZZY" in report
 
 
+def test_paper_command_refuses_a_json_path_in_a_missing_directory(tmp_path: Path) -> None:
+    target = tmp_path / "missing" / "paper.json"
+    assert main(["paper", "--quick", "--out", str(tmp_path / "out"), "--json", str(target)]) == 2
+
+
 def test_paper_command_rejects_a_file_as_output_directory(tmp_path: Path) -> None:
     target = tmp_path / "file.txt"
     target.write_text("x")

@@ -10,3 +10,4 @@
 #include "dualprobe/simulation.hpp"
 #include "dualprobe/status.hpp"
 #include "dualprobe/svf_estimator.hpp"
+#include "dualprobe/varying.hpp"

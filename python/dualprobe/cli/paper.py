@@ -40,7 +40,8 @@ def run(args: argparse.Namespace) -> int:
         target = Path(args.json)
         if target.is_dir():
             raise UsageError(f"--json {target}: is a directory")
-        if not target.parent.is_dir():
+        # the --out directory is created by the run (`make paper` writes its JSON there)
+        if not (target.parent.is_dir() or target.parent.resolve() == out.resolve()):
             raise UsageError(f"--json {target}: directory {target.parent} does not exist")
     from dualprobe.studies import run_paper
 

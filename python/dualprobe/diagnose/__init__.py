@@ -43,31 +43,42 @@ ladder rebuilt.
 
 from __future__ import annotations
 
-from dualprobe.diagnose.catalogue import EFFECTS, MIN_GAP_CLOSED, SIGNIFICANCE_LEVEL, SIMPLICITY
+from dualprobe.diagnose.catalogue import EFFECTS, FITTED_EFFECTS, SIMPLICITY, UNITS
+from dualprobe.diagnose.catalogue.dynamics import hysteretic_first_order, simulate_hysteretic
+from dualprobe.diagnose.evidence import MIN_GAP_CLOSED, SIGNIFICANCE_LEVEL
 from dualprobe.diagnose.files import diagnose_file, write_json
 from dualprobe.diagnose.fit import ModelFit, fit_model
-from dualprobe.diagnose.model import hysteretic_first_order, simulate_effects, simulate_hysteretic
+from dualprobe.diagnose.floors import roughness_floor, sampling_floor
+from dualprobe.diagnose.localise import localise
+from dualprobe.diagnose.model import simulate_effects
 from dualprobe.diagnose.report import FIGURES, REPORT_NAME, write_report
-from dualprobe.diagnose.residuals import localise, residual_tests, sampling_floor
+from dualprobe.diagnose.residuals import residual_tests
 from dualprobe.diagnose.result import Diagnosis, Step
 from dualprobe.diagnose.search import diagnose
+from dualprobe.diagnose.verdict import MISFIT_LIMIT, VERDICTS, Verdict
 
 __all__ = [
     "EFFECTS",
     "FIGURES",
+    "FITTED_EFFECTS",
     "MIN_GAP_CLOSED",
+    "MISFIT_LIMIT",
     "REPORT_NAME",
     "SIGNIFICANCE_LEVEL",
     "SIMPLICITY",
+    "UNITS",
+    "VERDICTS",
     "Diagnosis",
     "ModelFit",
     "Step",
+    "Verdict",
     "diagnose",
     "diagnose_file",
     "fit_model",
     "hysteretic_first_order",
     "localise",
     "residual_tests",
+    "roughness_floor",
     "sampling_floor",
     "simulate_effects",
     "simulate_hysteretic",

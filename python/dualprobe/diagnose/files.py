@@ -24,14 +24,19 @@ def diagnose_file(
     output_column: str = "T_m",
     time: str | None = "t",
     sample_interval: float | None = None,
+    flow_column: str | None = None,
+    noise_std: float | tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
-    """Load a CSV recording (``dualprobe.io.load_columns``) and diagnose it."""
+    """Load a CSV recording (``dualprobe.io.load_columns``) and diagnose it; `flow_column`
+    (values > 0) makes ``flow_dependence`` a candidate, `noise_std` (K) replaces the estimated
+    noise of both signals (or gives (reference, measured))."""
     if input_column == output_column:
         raise InputError(f"--input and --output are the same column {input_column!r}")
-    t, columns, interval = load_columns(
-        path, [input_column, output_column], time=time or None, min_rows=MIN_SAMPLES
-    )
+    if flow_column is not None and flow_column in (input_column, output_column):
+        raise InputError(f"the flow column {flow_column!r} is also --input or --output")
+    names = [input_column, output_column] + ([flow_column] if flow_column else [])
+    t, columns, interval = load_columns(path, names, time=time or None, min_rows=MIN_SAMPLES)
     if interval is None:
         if sample_interval is None:
             raise InputError(f"{path}: no time column; give the sample interval")
@@ -43,7 +48,13 @@ def diagnose_file(
         )
     try:
         return diagnose(
-            columns[input_column], columns[output_column], interval, time=t, progress=progress
+            columns[input_column],
+            columns[output_column],
+            interval,
+            time=t,
+            flow=columns[flow_column] if flow_column else None,
+            noise_std=noise_std,
+            progress=progress,
         )
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None

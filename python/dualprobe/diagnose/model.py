@@ -1,160 +1,116 @@
-"""The model family of the diagnosis, simulated exactly: first-order dynamics (or heating /
-cooling time constants), an optional extra pole and dead time, and the static map (gain,
-offset, Pt-100 curvature)."""
+"""The model family of the diagnosis, composed from the catalogue and simulated exactly::
+
+    v(t)  = u(t - delay)                                    dead_time
+    x1    = 1/(1 + tau s) v   tau: constant, or tau_heat / tau_cool     hysteresis
+                              times (v/v_ref)^-m (T/T_ref)^-n           flow_ / level_dependence
+    x     = 1/(1 + tau2 s) x1                               extra_pole
+    x_h   = x at the logger's latest refresh                sample_and_hold
+    y_hat = offset + gain x_h + curvature x_h (x_h - 100) + drift_rate t_h     static effects
+
+The reference is interpolated linearly between samples (first-order hold), or held over each
+sample interval when ``input_hold`` is set (data that follow the paper's eq. 8); the dynamics
+are discretised exactly for either.
+"""
 
 from __future__ import annotations
 
-import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
-from dualprobe._core import simulate_hysteretic_first_order as _core_hysteretic
+from dualprobe.diagnose.catalogue import conditions as cond
+from dualprobe.diagnose.catalogue import dynamics as dyn
+from dualprobe.diagnose.catalogue import static
+from dualprobe.diagnose.catalogue.logger import hold_index
 
 __all__ = [
-    "NONLINEARITY_ZERO",
-    "dynamics",
-    "hysteretic_first_order",
+    "Context",
+    "context_for",
+    "held",
+    "sensor_state",
     "simulate_effects",
-    "simulate_hysteretic",
-    "static_columns",
 ]
 
 
-# Zero of the curvature term other than 0 degC: the linear-alpha conversion is exact at 0 and
-# 100 degC (alpha is the mean slope over that interval).
-NONLINEARITY_ZERO = 100.0
+@dataclass(frozen=True)
+class Context:
+    """What a simulation needs besides the reference and the parameters."""
+
+    conditions: cond.Conditions
+    hours: np.ndarray  # time since the first row (h)
 
 
-def hysteretic_first_order(
-    gas: np.ndarray, ts: float, tau_heat: float, tau_cool: float, initial: float
-) -> np.ndarray:
-    """Pure-Python reference of the core loop (ZOH, direction by the sign of the drive):
-    ``T(k) = T(k-1) + (1 - exp(-ts/tau_dir)) (Tg(k-1) - T(k-1))``, ``T(0) = initial``."""
-    if not (ts > 0 and tau_heat > 0 and tau_cool > 0 and math.isfinite(initial)):
-        raise ValueError("hysteretic_first_order: ts, tau_heat, tau_cool must be > 0")
-    b_heat = -math.expm1(-ts / tau_heat)
-    b_cool = -math.expm1(-ts / tau_cool)
-    values = np.asarray(gas, dtype=float).tolist()
-    out = [0.0] * len(values)
-    if not values:
-        return np.empty(0)
-    state = float(initial)
-    out[0] = state
-    for k in range(1, len(values)):
-        drive = values[k - 1] - state
-        state += (b_heat if drive > 0.0 else b_cool) * drive
-        out[k] = state
-    return np.asarray(out)
+def context_for(
+    reference: np.ndarray,
+    ts: float,
+    flow: np.ndarray | None = None,
+    *,
+    flow_reference: float | None = None,
+    level_reference: float | None = None,
+) -> Context:
+    u = np.asarray(reference, dtype=float)
+    return Context(
+        conditions=cond.conditions_for(
+            u, flow, flow_reference=flow_reference, level_reference=level_reference
+        ),
+        hours=np.arange(u.size) * (ts / static.SECONDS_PER_HOUR),
+    )
 
 
-def simulate_hysteretic(
-    gas: np.ndarray, ts: float, tau_heat: float, tau_cool: float, initial: float
-) -> np.ndarray:
-    """:func:`hysteretic_first_order`, in C++ (``dualprobe._core``)."""
-    gas = np.ascontiguousarray(gas, dtype=float)
-    return np.asarray(_core_hysteretic(gas, float(ts), tau_heat, tau_cool, float(initial)))
-
-
-def _first_order_foh(v: np.ndarray, ts: float, tau: float, initial: float) -> np.ndarray:
-    """Exact response of 1/(1 + tau s) to the linearly interpolated input, state `initial` at
-    the first sample: x(k) = a x(k-1) + b0 v(k) + b1 v(k-1)."""
-    h = ts / tau
-    a = math.exp(-h)
-    one_minus_a = -math.expm1(-h)
-    b0 = 1.0 - one_minus_a / h
-    b1 = one_minus_a - b0
-    out = np.empty_like(v)
-    out[0] = initial
-    if v.size > 1:
-        zi = np.array([a * initial + b1 * v[0]])
-        out[1:], _ = signal.lfilter([b0, b1], [1.0, -a], v[1:], zi=zi)
-    return out
-
-
-def _delayed(u: np.ndarray, delay_samples: float) -> np.ndarray:
-    """u(t - delay), linearly interpolated, held at u[0] before the record."""
-    if delay_samples <= 0.0:
-        return u
-    whole = math.floor(delay_samples)
-    frac = delay_samples - whole
-    index = np.arange(u.size) - whole
-    now = u[np.clip(index, 0, None)]
-    before = u[np.clip(index - 1, 0, None)]
-    return (1.0 - frac) * now + frac * before
-
-
-def _first_order_zoh(
-    u: np.ndarray, ts: float, tau: float, initial: float, delay: float
-) -> np.ndarray:
-    """Exact response of exp(-delay s)/(1 + tau s) to the input held over each sample interval
-    (paper eq. 8 when delay = 0): with delay = (n + f) ts the held value changes a fraction f
-    into the interval, x(k) = a x(k-1) + c1 u(k-1-n) + c2 u(k-2-n)."""
-    h = ts / tau
-    a = math.exp(-h)
-    whole = math.floor(delay / ts)
-    frac = delay / ts - whole
-    late = math.exp(-(1.0 - frac) * h)
-    c1 = 1.0 - late
-    c2 = late - a
-    index = np.arange(u.size) - whole
-    drive = c1 * u[np.clip(index, 0, None)]
-    if c2 != 0.0:
-        drive = drive + c2 * u[np.clip(index - 1, 0, None)]
-    out, _ = signal.lfilter([0.0, 1.0], [1.0, -a], drive, zi=np.array([initial]))
-    return out
-
-
-def dynamics(u: np.ndarray, ts: float, p: Mapping[str, float]) -> np.ndarray:
-    """Sensor temperature x (before the static map) for the parameter set `p`.
-
-    The reference is interpolated linearly between samples, or held over each sample interval
-    when ``p["input_hold"]`` is set (data that follow the paper's eq. 8 exactly)."""
+def sensor_state(u: np.ndarray, ts: float, p: Mapping[str, float], context: Context) -> np.ndarray:
+    """Sensor temperature x (before the logger and the static map) for the parameters `p`."""
     delay = p.get("delay", 0.0)
     initial = p["initial"]
     hold = bool(p.get("input_hold", 0.0))
-    if "tau_heat" in p:
-        v = _delayed(u, delay / ts)
+    if cond.varies(p):
+        x = cond.varying_first_stage(u, ts, p, context.conditions)
+    elif "tau_heat" in p:
+        v = dyn.delayed(u, delay / ts)
         if not hold:
             # The core loop holds the gas over each interval; feeding it the interval mean of
             # the interpolated reference makes it the same (to O(ts/tau)^2) as the linear model.
-            mid = np.empty_like(v)
-            mid[:-1] = 0.5 * (v[:-1] + v[1:])
-            mid[-1] = v[-1]
-            v = mid
-        x = simulate_hysteretic(v, ts, p["tau_heat"], p["tau_cool"], initial)
+            v = dyn.interval_means(v)
+        x = dyn.simulate_hysteretic(v, ts, p["tau_heat"], p["tau_cool"], initial)
     elif hold:
-        x = _first_order_zoh(u, ts, p["tau"], initial, delay)
+        x = dyn.first_order_zoh(u, ts, p["tau"], initial, delay)
     else:
-        x = _first_order_foh(_delayed(u, delay / ts), ts, p["tau"], initial)
+        x = dyn.first_order_foh(dyn.delayed(u, delay / ts), ts, p["tau"], initial)
     if "tau2" in p:
         # the first stage's output is smooth: interpolating it is accurate in either case
-        x = _first_order_foh(x, ts, p["tau2"], initial)
+        x = dyn.first_order_foh(x, ts, p["tau2"], initial)
     return x
 
 
-def static_columns(x: np.ndarray, effects: Sequence[str]) -> list[tuple[str, np.ndarray]]:
-    columns = []
-    if "offset" in effects:
-        columns.append(("offset", np.ones_like(x)))
-    if "gain" in effects:
-        columns.append(("gain", x))
-    if "nonlinearity" in effects:
-        columns.append(("curvature", x * (x - NONLINEARITY_ZERO)))
-    return columns
+def held(x: np.ndarray, hours: np.ndarray, p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+    """State and time as the logger reads them (at its latest refresh, with sample_and_hold)."""
+    if "hold_samples" not in p:
+        return x, hours
+    index = hold_index(x.size, int(p["hold_samples"]), int(p["hold_phase"]))
+    return x[index], hours[index]
 
 
-def simulate_effects(reference: np.ndarray, ts: float, params: Mapping[str, float]) -> np.ndarray:
+def simulate_effects(
+    reference: np.ndarray,
+    ts: float,
+    params: Mapping[str, float],
+    *,
+    flow: np.ndarray | None = None,
+) -> np.ndarray:
     """Simulated sensor output for a parameter set as reported by :func:`diagnose`.
 
-    Keys: ``initial`` and ``tau`` (or ``tau_heat`` and ``tau_cool``), optional ``tau2``,
-    ``delay`` (s), ``gain``, ``offset`` (K), ``curvature`` (1/K), and ``input_hold`` = 1 when
-    the reference is held over each sample interval (paper eq. 8) instead of interpolated."""
+    Keys (units in ``catalogue.UNITS``): ``initial`` and ``tau`` (or ``tau_heat`` and
+    ``tau_cool``), optional ``tau2``, ``delay``, ``gain``, ``offset``, ``curvature``,
+    ``drift_rate``, ``flow_exponent`` with ``flow_reference`` (needs `flow`),
+    ``level_exponent`` with ``level_reference``, ``hold_samples`` with ``hold_phase``, and
+    ``input_hold`` = 1 when the reference is held over each sample interval (paper eq. 8)."""
     u = np.asarray(reference, dtype=float)
-    x = dynamics(u, ts, params)
-    return (
-        params.get("offset", 0.0)
-        + params.get("gain", 1.0) * x
-        + params.get("curvature", 0.0) * x * (x - NONLINEARITY_ZERO)
+    context = context_for(
+        u,
+        ts,
+        flow if "flow_exponent" in params else None,
+        flow_reference=params.get("flow_reference"),
+        level_reference=params.get("level_reference"),
     )
+    x, hours = held(sensor_state(u, ts, params, context), context.hours, params)
+    return static.apply(x, hours, params)

@@ -1,6 +1,5 @@
-"""Where and how a model disagrees with the measurement: the sampling floor of off-grid gas
-jumps, MATLAB-resid-style whiteness and cross-correlation tests, and the localisation of the
-residual in time, regime, frequency and physics signatures."""
+"""Tests of a residual: MATLAB-resid-style whiteness and cross-correlation with the input, the
+effective sample size, and the regimes (heating, cooling, settled; level and flow bands)."""
 
 from __future__ import annotations
 
@@ -8,21 +7,19 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy import signal, stats
-
-from dualprobe.diagnose.fit import ModelFit
+from scipy import fft as sp_fft
+from scipy import stats
 
 __all__ = [
     "CONFIDENCE",
     "REGIME_THRESHOLD_NOISE",
     "WHITENESS_LAGS",
+    "band_masks",
+    "direction_masks",
     "disagreement_windows",
     "effective_size",
-    "localise",
     "moving_mean",
-    "regime_masks",
     "residual_tests",
-    "sampling_floor",
 ]
 
 
@@ -35,39 +32,14 @@ WHITENESS_LAGS = 25  # as MATLAB resid
 CONFIDENCE = 0.99  # resid's band
 
 
-def sampling_floor(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> float:
-    """Mean square residual even a perfect model leaves because gas jumps fall between samples.
-
-    A jump dT of the reference (changes of 14 noise standard deviations of a difference) happened
-    at an unknown instant within a sample interval; interpolation puts it
-    mid-interval, off by delta ~ U(-ts/2, ts/2). The first-order response to that shift is
-    dT delta/tau exp(-t/tau), of energy dT^2 delta^2 / (2 tau), mean delta^2 = ts^2 / 12."""
-    du = np.diff(u)
-    size = np.abs(du)
-    big = size > max(10.0 * math.sqrt(2.0) * sigma_u, 1e-9)
-    # A jump is a run of at most 3 large differences (a reference with a lag of a fraction of a
-    # sample spreads it over two or three), isolated: 3x larger than the differences around it.
-    # Longer runs are ramps, which interpolation follows.
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], big.astype(np.int8), [0]))))
-    total = 0.0
-    for start, end in zip(edges[::2], edges[1::2], strict=True):
-        if end - start > 3:
-            continue
-        jump = float(np.sum(du[start:end]))
-        around = max(size[start - 1] if start > 0 else 0.0, size[end] if end < size.size else 0.0)
-        if abs(jump) > 3.0 * around:
-            total += jump**2
-    energy = ts**2 / 12.0 * total / (2.0 * tau)
-    return energy / (u.size * ts)
-
-
 def _autocorrelation(r: np.ndarray, max_lag: int) -> np.ndarray:
     """Biased sample autocorrelation, lags 0..max_lag (FFT)."""
     r = r - r.mean()
     n = r.size
-    size = 1 << (2 * n - 1).bit_length()
-    spectrum = np.fft.rfft(r, size)
-    acov = np.fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1] / n
+    # zero padding to n + max_lag makes the circular correlation exact up to max_lag
+    size = sp_fft.next_fast_len(n + max_lag + 1, real=True)
+    spectrum = sp_fft.rfft(r, size)
+    acov = sp_fft.irfft(spectrum * np.conj(spectrum), size)[: max_lag + 1] / n
     if acov[0] <= 0:
         return np.zeros(max_lag + 1)
     return acov / acov[0]
@@ -132,29 +104,41 @@ def residual_tests(
 
 
 def moving_mean(x: np.ndarray, width: int) -> np.ndarray:
+    """Centred moving mean over `width` samples; near the ends, over the samples there are
+    (not pulled towards 0 by zero padding)."""
     width = max(int(width), 1)
-    kernel = np.ones(width) / width
-    return np.convolve(x, kernel, mode="same")
+    kernel = np.ones(width)
+    total = np.convolve(x, kernel, mode="same")
+    count = np.convolve(np.ones(x.size), kernel, mode="same")
+    return total / count
 
 
-def regime_masks(
-    fit: ModelFit, reference: np.ndarray, ts: float, sigma: float
+def direction_masks(
+    prediction: np.ndarray, reference: np.ndarray, ts: float, sigma: float
 ) -> dict[str, np.ndarray]:
-    """Masks: heating / cooling (gas clearly hotter / colder than the simulated sensor, i.e. the
-    seconds after a change) and steady; temperature level thirds."""
+    """Heating / cooling (gas clearly hotter / colder than the simulated sensor, i.e. the
+    seconds after a change) and steady: each sample in exactly one."""
     smooth_ref = moving_mean(reference, max(3, round(0.5 / ts)))
-    drive = smooth_ref - fit.prediction
+    drive = smooth_ref - prediction
     threshold = max(REGIME_THRESHOLD_NOISE * sigma, 0.2)
     heating = drive > threshold
     cooling = drive < -threshold
-    low, high = np.quantile(reference, [1 / 3, 2 / 3])
+    return {"heating": heating, "cooling": cooling, "steady": ~(heating | cooling)}
+
+
+def band_masks(x: np.ndarray, ts: float) -> dict[str, tuple[tuple[float, float], np.ndarray]]:
+    """Thirds of the record's own range of `x` (0.5th to 99.5th percentile of its 1-s moving
+    mean): low, mid, high, each with its range; every sample in exactly one band. A record
+    whose range is nil is one band, "all"."""
+    smooth = moving_mean(x, max(1, round(1.0 / ts)))
+    lo, hi = (float(v) for v in np.quantile(smooth, [0.005, 0.995]))
+    if not hi > lo:
+        return {"all": ((float(np.min(x)), float(np.max(x))), np.ones(x.size, dtype=bool))}
+    first, second = lo + (hi - lo) / 3.0, lo + 2.0 * (hi - lo) / 3.0
     return {
-        "heating": heating,
-        "cooling": cooling,
-        "steady": ~(heating | cooling),
-        "level_low": reference <= low,
-        "level_mid": (reference > low) & (reference <= high),
-        "level_high": reference > high,
+        "low": ((lo, first), smooth < first),
+        "mid": ((first, second), (smooth >= first) & (smooth < second)),
+        "high": ((second, hi), smooth >= second),
     }
 
 
@@ -181,120 +165,3 @@ def disagreement_windows(
     energy = [float(np.sum(residual[s:e] ** 2)) for s, e in merged]
     order = np.argsort(energy)[::-1][:limit]
     return [merged[i] for i in sorted(order, key=lambda i: -energy[i])]
-
-
-def localise(
-    fit: ModelFit, reference: np.ndarray, t: np.ndarray, ts: float, sigma: float
-) -> dict[str, Any]:
-    """Where the residual of `fit` lives: time windows, regimes, frequency bands and physics
-    signatures (direction of heat flow, level, onset after a change)."""
-    r = fit.residual
-    total = float(np.sum(r**2)) or 1e-300
-    tau = fit.tau
-    windows = []
-    masks = regime_masks(fit, reference, ts, sigma)
-    for start, end in disagreement_windows(r, t, ts, tau, sigma):
-        segment = slice(start, end)
-        share_heat = float(np.mean(masks["heating"][segment]))
-        share_cool = float(np.mean(masks["cooling"][segment]))
-        regime = (
-            "heating"
-            if share_heat > max(share_cool, 0.3)
-            else ("cooling" if share_cool > 0.3 else "steady")
-        )
-        windows.append(
-            {
-                "start": float(t[start]),
-                "end": float(t[end - 1]),
-                "rms": float(np.sqrt(np.mean(r[segment] ** 2))),
-                "mean": float(np.mean(r[segment])),
-                "share": float(np.sum(r[segment] ** 2) / total),
-                "regime": regime,
-            }
-        )
-    regimes = {}
-    for name, mask in masks.items():
-        count = int(mask.sum())
-        regimes[name] = {
-            "fraction_of_time": count / r.size,
-            "rms": float(np.sqrt(np.mean(r[mask] ** 2))) if count else 0.0,
-            "mean": float(np.mean(r[mask])) if count else 0.0,
-            "share": float(np.sum(r[mask] ** 2) / total),
-        }
-    # Frequency: residual power by band relative to the sensor corner 1/(2 pi tau).
-    nperseg = int(min(r.size, max(256, 2 ** math.ceil(math.log2(20 * tau / ts + 1)))))
-    freq, psd = signal.welch(r, fs=1.0 / ts, nperseg=nperseg)
-    corner = 1.0 / (2.0 * math.pi * tau)
-    white = 2.0 * sigma**2 * ts
-    df = freq[1] - freq[0] if freq.size > 1 else 1.0
-    excess = np.clip(psd - white, 0.0, None) * df
-    bands = {
-        "static_below_corner/10": freq < corner / 10,
-        "around_corner": (freq >= corner / 10) & (freq < 10 * corner),
-        "fast_above_10x_corner": freq >= 10 * corner,
-    }
-    excess_total = float(excess.sum()) or 1e-300
-    frequency = {name: float(excess[m].sum() / excess_total) for name, m in bands.items()}
-    # Physics signatures.
-    signatures: dict[str, float] = {"mean_residual": float(np.mean(r))}
-    # Residual signed by the direction of heat flow (> 0: the sensor is ahead of the model).
-    # A wrong time constant gives the same sign in both directions, a direction-dependent one
-    # (hysteresis) opposite signs.
-    heat, cool = masks["heating"], masks["cooling"]
-    lead_heat = float(np.mean(r[heat])) if np.any(heat) else 0.0
-    lead_cool = float(-np.mean(r[cool])) if np.any(cool) else 0.0
-    signatures["lead_heating"] = lead_heat
-    signatures["lead_cooling"] = lead_cool
-    signatures["direction_asymmetry"] = (lead_heat - lead_cool) / max(
-        abs(lead_heat) + abs(lead_cool), 1e-300
-    )
-    steady = masks["steady"]
-    if np.sum(steady) > 10 and np.ptp(reference[steady]) > 0:
-        level = reference[steady]
-        signatures["corr_level_steady"] = float(np.corrcoef(r[steady], level)[0, 1])
-        centred = (level - level.mean()) / (np.ptp(level) or 1.0)
-        quad = centred**2 - np.mean(centred**2)
-        quad = quad - centred * (quad @ centred) / max(centred @ centred, 1e-300)
-        signatures["corr_curvature_steady"] = (
-            float(np.corrcoef(r[steady], quad)[0, 1]) if np.ptp(quad) > 0 else 0.0
-        )
-    else:
-        signatures["corr_level_steady"] = 0.0
-        signatures["corr_curvature_steady"] = 0.0
-    signatures.update(_onset_signature(r, reference, ts, tau, sigma))
-    return {
-        "windows": windows,
-        "regimes": regimes,
-        "frequency": frequency,
-        "signatures": signatures,
-    }
-
-
-def _onset_signature(
-    r: np.ndarray, reference: np.ndarray, ts: float, tau: float, sigma: float
-) -> dict[str, float]:
-    """Mean residual after the input's fast changes, signed by the change: its peak time (in
-    units of tau; early and sharp for a dead time, later and smooth for an extra pole)."""
-    step = np.diff(reference)
-    threshold = max(10.0 * sigma, 1.0)
-    onsets = np.flatnonzero(np.abs(step) > threshold)
-    if onsets.size:
-        keep = np.concatenate(([True], np.diff(onsets) > max(2, round(tau / ts))))
-        onsets = onsets[keep]
-    span = max(3, round(2.0 * tau / ts))
-    profiles = [
-        np.sign(step[k]) * r[k + 1 : k + 1 + span] for k in onsets if k + 1 + span <= r.size
-    ]
-    if not profiles:
-        return {
-            "onset_count": 0.0,
-            "onset_peak_time_over_tau": float("nan"),
-            "onset_mean_residual": 0.0,
-        }
-    mean_profile = np.mean(profiles, axis=0)
-    peak = int(np.argmax(np.abs(mean_profile)))
-    return {
-        "onset_count": float(len(profiles)),
-        "onset_peak_time_over_tau": float((peak + 1) * ts / tau),
-        "onset_mean_residual": float(mean_profile[peak]),
-    }
