@@ -154,6 +154,14 @@ def register(subparsers: Any) -> None:
         metavar="UNIT",
         help="unit of the flow axis in the DCM file (default: the flow model's, else '-')",
     )
+    parser.add_argument(
+        "--report",
+        default=None,
+        metavar="DIR",
+        help="write figures into DIR: reconstruction.png (sensors, gas and its ±2σ band), "
+        "tau_flow.png (time constants against the flow: windowed fits, the law, its ±1σ band) "
+        "and tau_time.png (time constants in effect per row) when they vary",
+    )
     parser.set_defaults(run=run)
 
 
@@ -165,7 +173,12 @@ def run(args: argparse.Namespace) -> int:
     for option, target in (("--json", args.json), ("--output", args.output), ("--dcm", args.dcm)):
         if target is not None:
             check_writable(option, Path(target))
-    need_reconstruction = args.output is not None or args.reference is not None
+    if args.report is not None:
+        report = Path(args.report)
+        if report.exists() and not report.is_dir():
+            raise UsageError(f"--report {report}: exists and is not a directory")
+    need_reconstruction = (args.output is not None or args.reference is not None
+                           or args.report is not None)
     result = characterise_file(
         args.data,
         time=args.time or None,
@@ -196,4 +209,9 @@ def run(args: argparse.Namespace) -> int:
             source=str(args.data),
         )
     print(result.summary())
+    if args.report is not None:
+        from dualprobe.workflows.figures import write_report
+
+        names = write_report(result, args.report)
+        print(f"wrote {', '.join(names)} to {args.report}")
     return 0

@@ -23,7 +23,7 @@ from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 
-__all__ = ["FlowModel", "flow_law", "track_without_flow"]
+__all__ = ["FlowModel", "flow_law", "track_without_flow", "windowed_time_constants"]
 
 # run the SVF characterisation (orders, static model, identifiability) with a schedule psi
 RunSvf = Callable[[np.ndarray | None], PairEstimate]
@@ -186,3 +186,27 @@ def track_without_flow(
     if estimate.status != "ok":
         return base, FlowModel("constant", np.ones(t1.size), evidence=stats)
     return estimate, FlowModel("tracked", tracked.psi, evidence=stats, tracking=tracked)
+
+
+def windowed_time_constants(t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate,
+                            flow_values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Constant-tau fits of half-overlapping windows, for showing a flow law against the data:
+    (median flow per window (W,), dominant time constants (W, 2)). A window spans ten of the
+    slower sensor's time constants (at least a minute, at most a quarter of the record), so
+    each estimate averages the flow over that span: the points scatter about the law."""
+    fit = _fit_of(estimate)
+    slow = max(estimate.time_constants[0][0], estimate.time_constants[1][0])
+    rows = int(max(10.0 * slow, 60.0) / fit.ts)
+    rows = max(min(rows, t1.size // 4), 50)
+    flows, taus = [], []
+    for start in range(0, t1.size - rows + 1, max(rows // 2, 1)):
+        part = slice(start, start + rows)
+        res = engine.fit(t1[part], t2[part], fit.ts, tf=fit.tf, order=fit.order,
+                         static=fit.static, sigma=fit.sigma)
+        if res is None or not res.ok:
+            continue
+        pair = (res.time_constants[0][0], res.time_constants[1][0])
+        if all(math.isfinite(v) and v > 0.0 for v in pair):
+            flows.append(float(np.median(flow_values[part])))
+            taus.append(pair)
+    return np.asarray(flows), np.asarray(taus).reshape(-1, 2)

@@ -46,6 +46,8 @@ class Characterisation:
     gas_std: np.ndarray | None = None  # posterior standard deviation of the reconstruction
     model_check: ModelCheck | None = None
     flow: np.ndarray | None = None  # the flow column, when a flow law was asked for
+    signals: tuple[np.ndarray, np.ndarray] | None = None  # the two sensors' readings
+    reference: np.ndarray | None = None  # the reference column, when given
 
     # ---------------------------------------------------------------------------------------
     def time_constants_per_row(self) -> tuple[np.ndarray, np.ndarray]:

@@ -220,6 +220,8 @@ def characterise_arrays(
         gas_std=gas_std,
         model_check=check,
         flow=None if flow is None else np.asarray(flow, dtype=np.float64),
+        signals=(t1, t2),
+        reference=reference,
     )
 
 
