@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy
 import numpy.typing
 import typing
-__all__: list[str] = ['DifferenceEstimator', 'DifferenceEstimatorF', 'KalmanReconstructor', 'KalmanReconstructorF', 'SvfEstimator', 'SvfEstimatorF', 'estimate_difference', 'estimate_svf', 'kalman_filter', 'reconstruct_inverse', 'simulate_hysteretic_first_order', 'simulate_switched_first_order']
+__all__: list[str] = ['DifferenceEstimator', 'DifferenceEstimatorF', 'KalmanReconstructor', 'KalmanReconstructorF', 'SvfEstimator', 'SvfEstimatorF', 'banded_inverse_diagonal', 'discretise_intervals', 'estimate_difference', 'estimate_svf', 'kalman_filter', 'reconstruct_inverse', 'simulate_hysteretic_first_order', 'simulate_switched_first_order', 'solve_svf_moments', 'svf_discretisation', 'svf_filter']
 class DifferenceEstimator:
     """
     Streaming difference-equation dual-sensor estimator (paper eqs. 10-12).
@@ -57,20 +57,48 @@ class DifferenceEstimatorF:
         ...
 class SvfEstimator:
     """
-    Streaming SVF cross-relation estimator (double; design.md 1.4): order 1 or 2, static model 'unit' or 'affine', optional heating/cooling split (order 1).
+    Streaming SVF cross-relation estimator (double; design.md 1.4, 1.5): order 1 or 2, static model 'unit' or 'affine', optional heating/cooling split (order 1), optional flow schedule of `basis` weights per sample.
     """
+    max_basis: typing.ClassVar[int] = 8
     max_half_window: typing.ClassVar[int] = 1024
-    def __init__(self, ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0) -> None:
+    def __init__(self, ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0, basis: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
         ...
+    def accumulated_moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        The rows accumulated so far (hysteresis: lagging by the look-ahead delay); consecutive snapshots differ by the rows in between.
+        """
+    def moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        What solve() reads (hysteresis: the clipped tail rows included).
+        """
     def reset(self) -> None:
         ...
     def solve(self) -> dict:
         ...
-    def update(self, t1: typing.SupportsFloat | typing.SupportsIndex, t2: typing.SupportsFloat | typing.SupportsIndex) -> str:
-        ...
-    def update_batch(self, t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> int:
+    def solve_moments(self, moments: typing.Any, offsets: typing.Any = None) -> dict:
         """
-        Feed arrays; returns the number of refused (non-finite) samples.
+        Solve from a moment vector (e.g. totals minus one block) with this configuration; offsets: (T1(0), T2(0)), by default this estimator's first samples.
+        """
+    def update(self, t1: typing.SupportsFloat | typing.SupportsIndex, t2: typing.SupportsFloat | typing.SupportsIndex, schedule: typing.Any = None, phi: typing.Any = None) -> str:
+        """
+        One sample; schedule: psi (basis 1) or the basis weights; phi (order 2): 1/psi by default. Returns the status ('ok', 'non_finite_input', 'invalid_argument').
+        """
+    def update_batch(self, t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], schedule: typing.Any = None, phi: typing.Any = None) -> int:
+        """
+        Feed arrays (schedule (N,) or (N, K), phi (N,)); returns the number of refused (non-finite) samples. ValueError for psi <= 0 or phi <= 0.
+        """
+    @property
+    def accumulated_noise_covariance(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Accumulated noise covariance handed to GTLS (documented columns).
+        """
+    @property
+    def basis(self) -> int:
+        ...
+    @property
+    def moment_layout(self) -> dict:
+        """
+        Named slices of the moment vector.
         """
     @property
     def nbytes(self) -> int:
@@ -80,7 +108,17 @@ class SvfEstimator:
     @property
     def noise_covariance(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Noise covariance of one unsplit row for the configured sigma1, sigma2.
+        Noise covariance of one unsplit, unscheduled row for the configured sigma1, sigma2.
+        """
+    @property
+    def offsets(self) -> tuple[float, float]:
+        """
+        The first samples (T1(0), T2(0)).
+        """
+    @property
+    def omega_moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Moments of omega = [1, (h1, h2), (phi), b_1..b_K] (no schedule: [has interval, h1, h2] or [1]).
         """
     @property
     def rows(self) -> float:
@@ -95,20 +133,48 @@ class SvfEstimator:
         """
 class SvfEstimatorF:
     """
-    Streaming SVF cross-relation estimator (float; design.md 1.4): order 1 or 2, static model 'unit' or 'affine', optional heating/cooling split (order 1).
+    Streaming SVF cross-relation estimator (float; design.md 1.4, 1.5): order 1 or 2, static model 'unit' or 'affine', optional heating/cooling split (order 1), optional flow schedule of `basis` weights per sample.
     """
+    max_basis: typing.ClassVar[int] = 8
     max_half_window: typing.ClassVar[int] = 1024
-    def __init__(self, ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0) -> None:
+    def __init__(self, ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0, basis: typing.SupportsInt | typing.SupportsIndex = 0) -> None:
         ...
+    def accumulated_moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        The rows accumulated so far (hysteresis: lagging by the look-ahead delay); consecutive snapshots differ by the rows in between.
+        """
+    def moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        What solve() reads (hysteresis: the clipped tail rows included).
+        """
     def reset(self) -> None:
         ...
     def solve(self) -> dict:
         ...
-    def update(self, t1: typing.SupportsFloat | typing.SupportsIndex, t2: typing.SupportsFloat | typing.SupportsIndex) -> str:
-        ...
-    def update_batch(self, t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float32], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float32]) -> int:
+    def solve_moments(self, moments: typing.Any, offsets: typing.Any = None) -> dict:
         """
-        Feed arrays; returns the number of refused (non-finite) samples.
+        Solve from a moment vector (e.g. totals minus one block) with this configuration; offsets: (T1(0), T2(0)), by default this estimator's first samples.
+        """
+    def update(self, t1: typing.SupportsFloat | typing.SupportsIndex, t2: typing.SupportsFloat | typing.SupportsIndex, schedule: typing.Any = None, phi: typing.Any = None) -> str:
+        """
+        One sample; schedule: psi (basis 1) or the basis weights; phi (order 2): 1/psi by default. Returns the status ('ok', 'non_finite_input', 'invalid_argument').
+        """
+    def update_batch(self, t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float32], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float32], schedule: typing.Any = None, phi: typing.Any = None) -> int:
+        """
+        Feed arrays (schedule (N,) or (N, K), phi (N,)); returns the number of refused (non-finite) samples. ValueError for psi <= 0 or phi <= 0.
+        """
+    @property
+    def accumulated_noise_covariance(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Accumulated noise covariance handed to GTLS (documented columns).
+        """
+    @property
+    def basis(self) -> int:
+        ...
+    @property
+    def moment_layout(self) -> dict:
+        """
+        Named slices of the moment vector.
         """
     @property
     def nbytes(self) -> int:
@@ -118,7 +184,17 @@ class SvfEstimatorF:
     @property
     def noise_covariance(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Noise covariance of one unsplit row for the configured sigma1, sigma2.
+        Noise covariance of one unsplit, unscheduled row for the configured sigma1, sigma2.
+        """
+    @property
+    def offsets(self) -> tuple[float, float]:
+        """
+        The first samples (T1(0), T2(0)).
+        """
+    @property
+    def omega_moments(self) -> numpy.typing.NDArray[numpy.float64]:
+        """
+        Moments of omega = [1, (h1, h2), (phi), b_1..b_K] (no schedule: [has interval, h1, h2] or [1]).
         """
     @property
     def rows(self) -> float:
@@ -253,6 +329,14 @@ class KalmanReconstructorF:
     @property
     def threshold(self) -> float:
         ...
+def banded_inverse_diagonal(factor: typing.Annotated[numpy.typing.ArrayLike, numpy.float64]) -> numpy.typing.NDArray[numpy.float64]:
+    """
+    Diagonal of A^-1 from the upper Cholesky band of A (LAPACK dpbtrf, lower=0): the smoother's posterior variances. Takahashi recursion, O(n kd^2).
+    """
+def discretise_intervals(taus1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], taus2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, gas: str = 'rw') -> tuple:
+    """
+    Exact discretisation per interval of the pair model (reference/kalman.py section 1-2) with stage time constants taus1 (N-1, S1) and taus2 (N-1, S2), S = 1 or 2 (gas -> stage 0 -> stage 1): returns (phi, q_unit), each (N-1, n, n), n = 1 or 2 gas states (gas='rw' or 'irw') + S1 + S2.
+    """
 @typing.overload
 def estimate_difference(t1: numpy.typing.NDArray[numpy.float64], t2: numpy.typing.NDArray[numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, method: str = 'gtls', sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0) -> dict:
     """
@@ -267,19 +351,19 @@ def estimate_difference(t1: numpy.typing.NDArray[numpy.float32], t2: numpy.typin
 def estimate_difference(t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, method: str = 'gtls', sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0) -> dict:
     ...
 @typing.overload
-def estimate_svf(t1: numpy.typing.NDArray[numpy.float64], t2: numpy.typing.NDArray[numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0) -> dict:
+def estimate_svf(t1: numpy.typing.NDArray[numpy.float64], t2: numpy.typing.NDArray[numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0, schedule: typing.Any = None, phi: typing.Any = None, block_length: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
     """
-    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, refused.
-    """
-@typing.overload
-def estimate_svf(t1: numpy.typing.NDArray[numpy.float32], t2: numpy.typing.NDArray[numpy.float32], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0) -> dict:
-    """
-    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, refused.
+    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, basis, refused, precision, moments, moment_layout, omega_moments, offsets and, with block_length > 0, block_moments (B, L): the moment vectors of consecutive blocks of block_length samples (design.md 1.5). schedule: None, psi (N,) or K <= 8 basis weights (N, K); phi (N,): order 2 (default 1/psi for K = 1).
     """
 @typing.overload
-def estimate_svf(t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0) -> dict:
+def estimate_svf(t1: numpy.typing.NDArray[numpy.float32], t2: numpy.typing.NDArray[numpy.float32], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0, schedule: typing.Any = None, phi: typing.Any = None, block_length: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
     """
-    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, refused.
+    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, basis, refused, precision, moments, moment_layout, omega_moments, offsets and, with block_length > 0, block_moments (B, L): the moment vectors of consecutive blocks of block_length samples (design.md 1.5). schedule: None, psi (N,) or K <= 8 basis weights (N, K); phi (N,): order 2 (default 1/psi for K = 1).
+    """
+@typing.overload
+def estimate_svf(t1: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], t2: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, forgetting: typing.SupportsFloat | typing.SupportsIndex = 1.0, direction_half_window: typing.Any = None, dead_zone: typing.SupportsFloat | typing.SupportsIndex = 2.0, schedule: typing.Any = None, phi: typing.Any = None, block_length: typing.SupportsInt | typing.SupportsIndex = 0) -> dict:
+    """
+    Batch SVF estimate on the C++ core (float64 or float32 arrays run in their own precision); returns a dict with status, theta, polynomials, time_constants (per sensor, largest first), time_constants_heat/_cool (hysteresis), gain_ratio, offset (affine), eigenvalues, eigenvalue_ratio, rows, basis, refused, precision, moments, moment_layout, omega_moments, offsets and, with block_length > 0, block_moments (B, L): the moment vectors of consecutive blocks of block_length samples (design.md 1.5). schedule: None, psi (N,) or K <= 8 basis weights (N, K); phi (N,): order 2 (default 1/psi for K = 1).
     """
 def kalman_filter(t1: typing.Any, t2: typing.Any, ts: typing.SupportsFloat | typing.SupportsIndex, taus1: typing.Any, taus2: typing.Any, sigma: typing.Any, q: typing.SupportsFloat | typing.SupportsIndex, *, gas: str = 'rw', taus1_cool: typing.Any = None, taus2_cool: typing.Any = None, detect_jumps: bool = True, window: typing.SupportsInt | typing.SupportsIndex = 64, false_alarm: typing.SupportsFloat | typing.SupportsIndex = 1e-06) -> dict:
     """
@@ -314,4 +398,16 @@ def simulate_hysteretic_first_order(tg: typing.Annotated[numpy.typing.ArrayLike,
 def simulate_switched_first_order(drive: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], a_heat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], f_heat: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], a_cool: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], f_cool: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], initial: typing.SupportsFloat | typing.SupportsIndex) -> numpy.typing.NDArray[numpy.float64]:
     """
     First-order recursion with coefficients per sample interval, switched by the direction of heat flow: out[0] = initial, out[k+1] = a_heat[k] out[k] + f_heat[k] if drive[k] > out[k], else a_cool[k] out[k] + f_cool[k]. Returns len(drive) + 1 values.
+    """
+def solve_svf_moments(moments: typing.Any, ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, order: typing.SupportsInt | typing.SupportsIndex = 1, static: str = 'unit', hysteresis: bool = False, sigma1: typing.SupportsFloat | typing.SupportsIndex = 0.0, sigma2: typing.SupportsFloat | typing.SupportsIndex = 0.0, basis: typing.SupportsInt | typing.SupportsIndex = 0, offsets: tuple[typing.SupportsFloat | typing.SupportsIndex, typing.SupportsFloat | typing.SupportsIndex] = (0.0, 0.0), precision: str = 'float64') -> dict:
+    """
+    Solve the SVF relation from a moment vector (estimate_svf(...)['moments'] or sums of 'block_moments'); offsets = (T1(0), T2(0)) of the record ('offsets' of the batch call). Returns the dict of SvfEstimator.solve().
+    """
+def svf_discretisation(ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, m: typing.SupportsInt | typing.SupportsIndex, hold: str = 'foh') -> dict:
+    """
+    Exact discretisation of the SVF cascade: phi, ga, gb, derivative_map and the stationary state covariance for unit white input (svf_filter.hpp).
+    """
+def svf_filter(u: typing.Annotated[numpy.typing.ArrayLike, numpy.float64], ts: typing.SupportsFloat | typing.SupportsIndex, tf: typing.SupportsFloat | typing.SupportsIndex, m: typing.SupportsInt | typing.SupportsIndex, hold: str = 'foh') -> numpy.typing.NDArray[numpy.float64]:
+    """
+    The SVF's cascade F = 1/(1 + tf s)^m on each row of u (1-D or (rows, samples)), starting at rest: (rows, m, samples) of the scaled derivatives x_j = (tf s)^j F u.
     """

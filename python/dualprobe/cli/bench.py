@@ -39,13 +39,18 @@ def register(subparsers: Any) -> None:
         description="throughput: samples per second of the C++ streaming update+solve (double "
         "and float), the NumPy reference and a memory-bandwidth baseline, on the same arrays. "
         "noise: time-constant error and reconstruction RMSE of the paper's plain method and of "
-        "the noise-robust defaults against noise level and sample rate (table and figure).",
+        "the noise-robust defaults against noise level and sample rate (table and figure). "
+        "pipeline: `dualprobe characterise` on simulated recordings of 10 min, 1 h and 6 h at "
+        "100 Hz and a 30 min, 10 Hz drive cycle with --flow, in a child process: wall time, "
+        "peak resident memory, rows per second; the core's streaming rate against memory "
+        "bandwidth.",
     )
     parser.add_argument(
         "--section",
-        choices=("throughput", "noise", "all"),
+        choices=("throughput", "pipeline", "noise", "all"),
         default="throughput",
-        help="what to run (default: throughput)",
+        help="what to run (default: throughput; pipeline: characterise at recording scale, "
+        "wall time and peak memory; all: every section)",
     )
     parser.add_argument(
         "--samples",
@@ -122,6 +127,11 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 1
         _print_throughput(result)
+    if args.section in ("pipeline", "all"):
+        from dualprobe.workflows.pipeline import bench_pipeline, pipeline_table
+
+        result["pipeline"] = bench_pipeline()
+        print(pipeline_table(result["pipeline"]))
     if args.section in ("noise", "all"):
         result["noise_study"] = _noise_study(out, args.seeds)
     if args.json is not None:
