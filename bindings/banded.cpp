@@ -36,12 +36,14 @@ py::array_t<double> banded_inverse_diagonal(
   }
   {
     py::gil_scoped_release release;
-    std::vector<double> z(static_cast<std::size_t>((kd + 1) * n), 0.0);
-    // Z(i, j), i <= j <= i + kd, at z[(j - i) + (kd + 1) i]
+    // Row i of the inverse's band reads rows i + 1 .. i + kd only: a ring of kd + 1 rows
+    // (memory O(kd^2), not another band of the factor's size at recording scale).
+    std::vector<double> z(static_cast<std::size_t>((kd + 1) * (kd + 1)), 0.0);
+    // Z(i, j), i <= j <= i + kd, at z[(j - i) + (kd + 1) (i mod (kd + 1))]
     const auto Z = [&](std::ptrdiff_t a, std::ptrdiff_t b) -> double& {
       const std::ptrdiff_t i = std::min(a, b);
       const std::ptrdiff_t j = std::max(a, b);
-      return z[static_cast<std::size_t>((j - i) + (kd + 1) * i)];
+      return z[static_cast<std::size_t>((j - i) + (kd + 1) * (i % (kd + 1)))];
     };
     for (std::ptrdiff_t i = n - 1; i >= 0; --i) {
       const double uii = U(i, i);

@@ -247,15 +247,54 @@ void bind_class(py::module_& m, const char* name) {
       .def_property_readonly("last_jump", &jump_dict<S>);
 }
 
+// Schedule levels are quantised in log steps of 0.5 %: the filter is retuned (rediscretised)
+// only when the level moves by a step, and a time constant 0.25 % off changes the causal
+// reconstruction far below the noise.
+constexpr double kScheduleStep = 0.00498754151103897;  // log(1.005)
+
+double schedule_level(double value) {
+  return std::exp(std::round(std::log(value) / kScheduleStep) * kScheduleStep);
+}
+
+template <typename S>
+dualprobe::KalmanConfig<S> scaled_config(dualprobe::KalmanConfig<S> c, double level) {
+  for (int j = 0; j < 2; ++j) {
+    c.taus1[j] = S(double(c.taus1[j]) * level);
+    c.taus2[j] = S(double(c.taus2[j]) * level);
+    c.taus1_cool[j] = S(double(c.taus1_cool[j]) * level);
+    c.taus2_cool[j] = S(double(c.taus2_cool[j]) * level);
+  }
+  return c;
+}
+
 template <typename S>
 py::dict kalman_filter(const Array<S>& t1, const Array<S>& t2, double ts,
                        const py::object& taus1, const py::object& taus2,
                        const py::object& sigma, double q, const std::string& gas,
                        const py::object& taus1_cool, const py::object& taus2_cool,
-                       bool detect_jumps, int window, double false_alarm) {
+                       bool detect_jumps, int window, double false_alarm,
+                       const py::object& schedule) {
   const std::size_t n = checked_length<S>(t1, t2);
-  auto r = make_reconstructor<S>(make_config<S>(ts, taus1, taus2, sigma, q, gas, taus1_cool,
-                                                taus2_cool, detect_jumps, window, false_alarm));
+  std::vector<double> levels;
+  if (!schedule.is_none()) {
+    const auto values = py::array_t<double, py::array::c_style | py::array::forcecast>(schedule);
+    if (values.ndim() != 1 || static_cast<std::size_t>(values.size()) != n) {
+      throw py::value_error("schedule must hold one value per sample");
+    }
+    levels.resize(n);
+    for (std::size_t k = 0; k < n; ++k) {
+      const double v = values.at(static_cast<py::ssize_t>(k));
+      if (!(std::isfinite(v) && v > 0.0)) throw py::value_error("schedule must be finite and > 0");
+      levels[k] = v;
+    }
+    // time constants that follow the flow come with a continuously moving gas: no jumps to
+    // detect, and a retune would drop the GLR's candidates anyway
+    detect_jumps = false;
+  }
+  const auto base = make_config<S>(ts, taus1, taus2, sigma, q, gas, taus1_cool, taus2_cool,
+                                   detect_jumps, window, false_alarm);
+  double current = levels.empty() ? 1.0 : schedule_level(levels[0]);
+  auto r = make_reconstructor<S>(scaled_config(base, current));
   Array<S> gas_out(static_cast<py::ssize_t>(n));
   Array<S> variance(static_cast<py::ssize_t>(n));
   std::vector<std::int64_t> detected;
@@ -269,6 +308,13 @@ py::dict kalman_filter(const Array<S>& t1, const Array<S>& t2, double ts,
     S* g = gas_out.mutable_data();
     S* v = variance.mutable_data();
     for (std::size_t k = 0; k < n; ++k) {
+      if (!levels.empty() && k > 0) {
+        // interval k-1 -> k: the mean of its ends, as the smoother's model
+        const double level = schedule_level(0.5 * (levels[k - 1] + levels[k]));
+        if (level != current && r->retune(scaled_config(base, level)) == dualprobe::Status::ok) {
+          current = level;
+        }
+      }
       refused += r->update_block(p1 + k, p2 + k, 1, g + k);
       v[k] = r->gas_variance();
       if (r->jump_detected()) {
@@ -288,7 +334,9 @@ py::dict kalman_filter(const Array<S>& t1, const Array<S>& t2, double ts,
 constexpr const char* kFilterDoc =
     "Causal Kalman reconstruction of a whole record (C++ core; in float when t1 and t2 are "
     "both float32, else in double); returns a dict with gas, gas_variance, jump_detected_at, jump_interval, "
-    "jump_size, log_likelihood, refused.";
+    "jump_size, log_likelihood, refused. schedule (N,): the time constants in effect at sample k "
+    "are the given ones times schedule[k] (interval k-1 -> k: the mean of its ends, quantised "
+    "in 0.5 % log steps); jump detection is off with a schedule.";
 
 }  // namespace
 
@@ -304,20 +352,20 @@ void bind_kalman(pybind11::module_& m) {
       [](const py::object& signal1, const py::object& signal2, double ts, const py::object& taus1,
          const py::object& taus2, const py::object& sigma, double q, const std::string& gas,
          const py::object& taus1_cool, const py::object& taus2_cool, bool detect_jumps,
-         int window, double false_alarm) {
+         int window, double false_alarm, const py::object& schedule) {
         const py::array t1 = as_array(signal1);
         const py::array t2 = as_array(signal2);
         const auto f32 = py::dtype::of<float>();
         if (t1.dtype().is(f32) && t2.dtype().is(f32)) {
           return kalman_filter<float>(numeric<float>(t1), numeric<float>(t2), ts, taus1, taus2,
                                       sigma, q, gas, taus1_cool, taus2_cool, detect_jumps,
-                                      window, false_alarm);
+                                      window, false_alarm, schedule);
         }
         return kalman_filter<double>(numeric<double>(t1), numeric<double>(t2), ts, taus1, taus2,
                                      sigma, q, gas, taus1_cool, taus2_cool, detect_jumps, window,
-                                     false_alarm);
+                                     false_alarm, schedule);
       },
-      "t1"_a, "t2"_a, DUALPROBE_KALMAN_CONFIG_ARGS, kFilterDoc);
+      "t1"_a, "t2"_a, DUALPROBE_KALMAN_CONFIG_ARGS, "schedule"_a = py::none(), kFilterDoc);
 }
 
 }  // namespace dualprobe_bindings

@@ -107,7 +107,8 @@ def reconstruct(
     )
     if mode == "smoother":
         return Reconstruction(fit.gas, fit.gas_std, mode, fit)
-    gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma) + fit.offset
+    gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
+                        schedule=schedule) + fit.offset
     return Reconstruction(gas, nan, mode, fit)
 
 

@@ -16,7 +16,14 @@ import scipy.optimize
 from dualprobe import _core
 from dualprobe.reconstruction.statespace import PairModel, process_floor
 
-__all__ = ["JUMP_DOF", "GasFit", "Trajectory", "fit_gas_models", "gaussian_log_q"]
+__all__ = [
+    "JUMP_DOF",
+    "GasFit",
+    "Trajectory",
+    "fit_gas_models",
+    "gaussian_log_q",
+    "initial_modes",
+]
 
 JUMP_DOF = 1.0  # Student-t increments: a jump costs ~log(size), not size^2 (not data-tuned)
 _MAX_ROUNDS = 25  # alternations weights <-> intensity; typically settles in 3-15
@@ -78,7 +85,7 @@ class Trajectory:
         lam_prev = np.zeros(big_n)  # ... and before it
         lam_prev[1:] = lam
         u = self.upper
-        ab = np.zeros((u + 1, big_n * n))
+        ab = np.zeros((u + 1, big_n * n), order="F")  # LAPACK layout: no copy in dpbtrf
         for p in range(n):
             for c in range(p, n):
                 if single:
@@ -166,7 +173,7 @@ def _interval_modes(model: PairModel, x: np.ndarray) -> np.ndarray:
     return model.modes(0.5 * (x[1:] + x[:-1]))
 
 
-def _initial_modes(model: PairModel, y: np.ndarray) -> np.ndarray:
+def initial_modes(model: PairModel, y: np.ndarray) -> np.ndarray:
     """Before any trajectory exists: a stage is heating while its sensor's output rises."""
     if not model.hysteretic:
         return np.zeros(y.shape[0] - 1, dtype=np.intp)
@@ -289,7 +296,7 @@ class GasFit:
     ) -> None:
         self.model = model
         self.objective = _Objective(
-            Trajectory(model, y, sigma), _initial_modes(model, y), initial_weights
+            Trajectory(model, y, sigma), initial_modes(model, y), initial_weights
         )
         self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
         lowest, start, highest = _log_q_range(model, y, sigma)
