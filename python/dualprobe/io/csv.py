@@ -22,6 +22,7 @@ import math
 import os
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -196,6 +197,14 @@ def _data_lines(raw: bytes, body: int, first_line: int) -> np.ndarray:
     return first_line + 1 + np.flatnonzero(~blank)
 
 
+def _float64(column: Any) -> np.ndarray:
+    """A float64 column without nulls as one NumPy array, read from its chunks' data buffers
+    (pyarrow's ``to_numpy`` imports pandas on the way: ~50 MB and 0.3 s per run)."""
+    parts = [np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk),
+                           offset=8 * chunk.offset) for chunk in column.chunks]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
 def _fast_columns(
     path: Path, raw: bytes, requested: list[str], time: str | None
 ) -> tuple[dict[str, str], dict[str, np.ndarray], int, int] | None:
@@ -223,15 +232,15 @@ def _fast_columns(
                 strings_can_be_null=False,
                 quoted_strings_can_be_null=False,
             ),
+            # the system allocator hands the parse buffers back when the table goes; the
+            # default (jemalloc/mimalloc) pool kept ~120 MB of a one-hour 100 Hz file
+            memory_pool=pa.system_memory_pool(),
         )
     except (pa.ArrowInvalid, pa.ArrowTypeError, pa.ArrowNotImplementedError):
         return None
     if table.num_rows == 0:
         return None
-    columns = {
-        wanted: table.column(name).to_numpy().astype(np.float64, copy=False)
-        for wanted, name in names.items()
-    }
+    columns = {wanted: _float64(table.column(name)) for wanted, name in names.items()}
     return names, columns, header_line, body
 
 

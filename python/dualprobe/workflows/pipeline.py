@@ -2,7 +2,8 @@
 
 Each case writes a simulated recording as CSV (a drive cycle from
 :mod:`dualprobe.simulate.drive_cycle`: load-following gas, 0.05 K noise, 0.02 K ADC steps),
-runs ``dualprobe characterise`` on it in a child process exactly as a user would, and reports
+runs ``dualprobe characterise --json --output`` on it (estimation, uncertainties, the
+smoother's reconstruction) in a child process exactly as a user would, and reports
 the child's wall time, its peak resident memory (``ru_maxrss`` from ``wait4``) and the rows per
 second. The constant-time-constant cases (10 min, 1 h and 6 h at 100 Hz) show the cost's
 growth with length; the flow case (30 min at 10 Hz, time constants following the gas velocity,
@@ -108,7 +109,8 @@ def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: in
             path = Path(tmp) / f"case{i}.csv"
             n = _write_case(case, path, seed + i)
             command = [sys.executable, "-m", "dualprobe", "characterise", str(path),
-                       "--json", str(Path(tmp) / f"case{i}.json")]
+                       "--json", str(Path(tmp) / f"case{i}.json"),
+                       "--output", str(Path(tmp) / f"case{i}_gas.csv")]
             if case.flow:
                 command += ["--flow", "flow"]
             wall, peak, status, last = _run_child(command)
