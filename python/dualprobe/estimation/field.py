@@ -171,11 +171,27 @@ def track_without_flow(
     constant = FlowModel("constant", np.ones(t1.size), evidence=stats)
     if flow.evidence(base_fit.misfit, 1.0, n_eff) <= GAP_THRESHOLD or base_fit.hysteresis:
         return base, constant
-    static = (base_fit.gain_ratio, base_fit.offset) if base_fit.static == "affine" else (1.0, 0.0)
-    try:
-        tracked = tracking.track(t1, t2, base_fit.ts, tf=base_fit.tf, order=1,
-                                 sigma=base_fit.sigma, effective_rows=n_eff, static=static)
-    except tracking.TrackingError:
+    # Unit gains first: the constant model's affine gain and offset absorb part of the very
+    # variation being tracked (0.98 and 8.3 K on a drive cycle with m = 0.5), and with a
+    # wrong offset a free psi still fits by taking any sign (-213 .. 1256 there). A tracked
+    # psi must be positive everywhere (time constants are).
+    candidates = [(1.0, 0.0)]
+    if base_fit.static == "affine":
+        candidates.append((base_fit.gain_ratio, base_fit.offset))
+    tracked = None
+    for static in candidates:
+        try:
+            result = tracking.track(t1, t2, base_fit.ts, tf=base_fit.tf, order=1,
+                                    sigma=base_fit.sigma, effective_rows=n_eff, static=static)
+        except tracking.TrackingError:
+            continue
+        if not np.all(result.psi > 0.0):
+            continue
+        if tracked is None or result.misfit < tracked.misfit:
+            tracked = result
+        if flow.evidence(tracked.misfit, 1.0, n_eff) <= GAP_THRESHOLD:
+            break  # explains the data: no need for the affine map
+    if tracked is None:
         return base, constant
     statistic = flow.evidence(base_fit.misfit, tracked.misfit, n_eff)
     stats.update(misfit_tracked=tracked.misfit, tracking_statistic=statistic,

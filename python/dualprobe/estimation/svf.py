@@ -313,8 +313,11 @@ class _SvfRun:
         for i in range(2):
             t, note = resolved(res.time_constants[i], res.polynomials[i])
             if note == "no positive real time constants":
-                return self.failed("infeasible", f"sensor {i + 1}: {note} fit these signals "
-                                   "(check the columns)", identifiability)
+                return self.failed(
+                    "infeasible", f"sensor {i + 1}: {note} fit these signals with constant "
+                    f"order-{res.order} dynamics (if the time constants vary with the gas "
+                    "flow, give it with --flow; a first-order model may fit: --order 1; or "
+                    "the two columns do not see the same gas)", identifiability)
             if note:
                 notes.append(f"sensor {i + 1}: {note}")
             taus.append(t)

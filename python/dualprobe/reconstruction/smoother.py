@@ -124,9 +124,14 @@ def _steps_at_samples(
     longest = max(b - a for a, b in regions)
     f_ts = continuous_matrix(model) * model.ts
     # output response to a unit step i/per intervals ago, i = 0 .. longest * per
-    response = np.array(
-        [model.h @ scipy.linalg.expm(f_ts * (i / per))[:, 0] for i in range(longest * per + 1)]
-    )
+    # powers of one grid step's transition (one expm, not one per grid point)
+    step_matrix = scipy.linalg.expm(f_ts / per)
+    state = np.zeros(step_matrix.shape[0])
+    state[0] = 1.0
+    response = np.empty((longest * per + 1, model.h.shape[0]))
+    for i in range(response.shape[0]):
+        response[i] = model.h @ state
+        state = step_matrix @ state
     for k0, end in regions:
         length = end - k0
         step = x[end, 0] - x[k0, 0]

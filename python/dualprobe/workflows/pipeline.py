@@ -13,6 +13,7 @@ baseline on the same arrays in the same run (the SVF estimator's update over the
 
 from __future__ import annotations
 
+import math
 import os
 import subprocess
 import sys
@@ -27,7 +28,13 @@ import numpy as np
 from dualprobe import simulate as sim
 from dualprobe.io.csv import write_columns
 
-__all__ = ["PIPELINE_CASES", "PipelineCase", "bench_pipeline", "pipeline_table"]
+__all__ = [
+    "PIPELINE_CASES",
+    "PipelineCase",
+    "bench_pipeline",
+    "pipeline_table",
+    "uncertainty_cost",
+]
 
 
 @dataclass(frozen=True)
@@ -99,6 +106,40 @@ def _streaming_ratio(path: Path) -> dict[str, float]:
             "svf_vs_bandwidth": bandwidth / svf}
 
 
+def uncertainty_cost(seed: int = 3, repeats: int = 3) -> list[dict[str, Any]]:
+    """What the standard uncertainties add to ``characterise`` (estimation and smoother), in
+    process, best of ``repeats``: a 30 min, 10 Hz drive cycle with and without its flow, and
+    10 min of laboratory multisteps at 5 Hz."""
+    from dualprobe.workflows.characterise import characterise_arrays
+
+    rng = np.random.default_rng(seed)
+    drive = sim.simulate_field_pair(sim.drive_cycle(1800.0, rng), sim.FieldSensor(4.0, 0.5),
+                                    sim.FieldSensor(12.0, 0.5), sample_rate=10.0,
+                                    quantisation=0.02, rng=rng)
+    profile = sim.multistep_profile(600.0, mean=300.0, amplitude=5.0, mean_hold=50.0, rng=rng)
+    lab = sim.simulate_pair(profile, sim.SensorModel((5.0,)), sim.SensorModel((15.0,)),
+                            ts=0.2, duration=600.0, noise_std=0.05, rng=rng)
+    cases = [("drive cycle 30 min at 10 Hz, flow", drive.t1, drive.t2, drive.ts, drive.flow),
+             ("drive cycle 30 min at 10 Hz, tracked", drive.t1, drive.t2, drive.ts, None),
+             ("laboratory steps 10 min at 5 Hz", lab.t1, lab.t2, lab.ts, None)]
+    rows = []
+    for label, t1, t2, ts, flow in cases:
+        seconds = {}
+        for with_uncertainty in (False, True):
+            best = math.inf
+            for _ in range(repeats):
+                start = time.perf_counter()
+                characterise_arrays(t1, t2, ts, flow=flow, flow_column=None if flow is None
+                                    else "flow", uncertainty=with_uncertainty,
+                                    reconstruction="smoother")
+                best = min(best, time.perf_counter() - start)
+            seconds[with_uncertainty] = best
+        rows.append({"case": label, "seconds_without": seconds[False],
+                     "seconds_with": seconds[True],
+                     "added_percent": 100.0 * (seconds[True] / seconds[False] - 1.0)})
+    return rows
+
+
 def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: int = 1,
                    workdir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Run ``dualprobe characterise`` on each case's recording; see the module docstring."""
@@ -121,7 +162,8 @@ def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: in
                 streaming = _streaming_ratio(path)
             path.unlink()
     per_row = {r["case"]: r["seconds"] / r["rows"] for r in rows}
-    result: dict[str, Any] = {"cases": rows, "streaming": streaming}
+    result: dict[str, Any] = {"cases": rows, "streaming": streaming,
+                              "uncertainty_cost": uncertainty_cost()}
     if "1 h at 100 Hz" in per_row and "6 h at 100 Hz" in per_row:
         # linear cost: the time per row at 6 h over that at 1 h stays near 1
         result["time_per_row_6h_vs_1h"] = per_row["6 h at 100 Hz"] / per_row["1 h at 100 Hz"]
@@ -139,6 +181,9 @@ def pipeline_table(result: dict[str, Any]) -> str:
         lines.append(f"\ncore SVF update {s['svf_samples_per_s']:.3g} samples/s, "
                      f"{s['svf_vs_bandwidth']:.2f}x the bandwidth baseline "
                      f"({s['bandwidth_samples_per_s']:.3g} samples/s)")
+    for r in result.get("uncertainty_cost", []):
+        lines.append(f"uncertainties, {r['case']}: {r['seconds_without']:.2f} s -> "
+                     f"{r['seconds_with']:.2f} s ({r['added_percent']:+.0f} %)")
     if "time_per_row_6h_vs_1h" in result:
         lines.append(f"time per row, 6 h / 1 h: {result['time_per_row_6h_vs_1h']:.2f}")
     return "\n".join(lines)
