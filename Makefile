@@ -115,6 +115,7 @@ firmware: setup
 
 bench: setup-demo
 	$(VENV)/bin/dualprobe bench --json out/bench.json
+	$(VENV)/bin/dualprobe bench --section pipeline --json out/bench_pipeline.json
 
 paper: setup-demo
 	$(VENV)/bin/dualprobe paper --out out/paper --json out/paper/paper.json

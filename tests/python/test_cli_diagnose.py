@@ -249,3 +249,25 @@ def test_no_internal_error_on_degenerate_data(
         assert len(captured.err.strip().splitlines()) == 1
     else:
         assert "verdict: " in captured.out
+
+
+def test_time_in_milliseconds(recording: Path, tmp_path: Path,
+                              capsys: pytest.CaptureFixture[str]) -> None:
+    """The same record with its time in ms (by option, and by a 'Time (ms)' header) gives
+    the same baseline as in seconds (issue 15: every command reads every time unit)."""
+    data = np.loadtxt(recording, delimiter=",", skiprows=1)
+    ms = _write_csv(tmp_path / "ms.csv", {"t": data[:, 0] * 1e3, "T_ref": data[:, 1],
+                                          "T_m": data[:, 2]})
+    header = _write_csv(tmp_path / "header.csv", {"Time (ms)": data[:, 0] * 1e3,
+                                                  "T_ref": data[:, 1], "T_m": data[:, 2]})
+    docs = []
+    for path, extra in ((recording, []), (ms, ["--time-unit", "ms"]),
+                        (header, ["--time", "Time"])):
+        out = tmp_path / f"{path.stem}.json"
+        status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m",
+                       "--json", str(out), *extra])
+        assert status == 0, capsys.readouterr().err
+        docs.append(json.loads(out.read_text()))
+    for doc in docs[1:]:
+        for name, value in docs[0]["baseline"]["params"].items():
+            assert doc["baseline"]["params"][name] == pytest.approx(value, rel=1e-6)

@@ -81,7 +81,7 @@ def register(subparsers: Any) -> None:
         help="white-noise level in K of both signals, or SIGMA_IN,SIGMA_OUT (default: "
         "estimated from the data, never below the readings' quantisation step / sqrt(12))",
     )
-    add_time_arguments(parser)
+    add_time_arguments(parser, unit=True)
     parser.add_argument("--json", default=None, metavar="PATH", help="write the result as JSON")
     parser.add_argument(
         "--report",
@@ -116,6 +116,7 @@ def run(args: argparse.Namespace) -> int:
         output_column=args.output,
         time=args.time or None,
         sample_interval=args.sample_interval,
+        time_unit=args.time_unit,
         flow_column=args.flow,
         noise_std=args.noise_std,
     )

@@ -24,11 +24,13 @@ def diagnose_file(
     output_column: str = "T_m",
     time: str | None = "t",
     sample_interval: float | None = None,
+    time_unit: str | None = None,
     flow_column: str | None = None,
     noise_std: float | tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
-    """Load a CSV recording (``dualprobe.io.load_columns``) and diagnose it; `flow_column`
+    """Load a recording (CSV, Parquet, MDF4: ``dualprobe.io.load_columns``; ``time_unit`` s,
+    ms, us or min overrides the header's) and diagnose it; `flow_column`
     (values > 0) makes ``flow_dependence`` a candidate, `noise_std` (K) replaces the estimated
     noise of both signals (or gives (reference, measured))."""
     if input_column == output_column:
@@ -36,7 +38,8 @@ def diagnose_file(
     if flow_column is not None and flow_column in (input_column, output_column):
         raise InputError(f"the flow column {flow_column!r} is also --input or --output")
     names = [input_column, output_column] + ([flow_column] if flow_column else [])
-    t, columns, interval = load_columns(path, names, time=time or None, min_rows=MIN_SAMPLES)
+    t, columns, interval = load_columns(path, names, time=time or None, min_rows=MIN_SAMPLES,
+                                        time_unit=time_unit)
     if interval is None:
         if sample_interval is None:
             raise InputError(f"{path}: no time column; give the sample interval")
