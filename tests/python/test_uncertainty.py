@@ -154,3 +154,22 @@ def test_summary_prints_plus_minus_and_json_has_std() -> None:
         assert len(sensor["time_constants_std"]) == len(sensor["time_constants"])
         assert all(isinstance(v, bool) for v in sensor["identifiable"])
     assert result.gas_std is not None and np.all(np.isfinite(result.gas_std))
+
+
+def test_a_reconstruction_on_an_unidentifiable_time_constant_is_flagged() -> None:
+    """+-0.5 K steps in 0.3 K noise: the order-2 model is not identifiable, the first-order
+    pair is (order auto falls back to it) but the fast sensor's time constant is not pinned;
+    the reconstruction built on it says so (issue 16: flagged or withheld)."""
+    rng = np.random.default_rng(2)
+    profile = sim.multistep_profile(600.0, mean=300.0, amplitude=0.5, mean_hold=50.0,
+                                    rng=rng)
+    rec = sim.simulate_pair(profile, sim.SensorModel((5.0,)), sim.SensorModel((15.0,)),
+                            ts=0.2, duration=600.0, noise_std=0.3, rng=rng)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, reconstruction="smoother")
+    conf = result.estimate.confidence
+    assert conf is not None and result.estimate.order == 1
+    assert not conf.identifiable["tau1_0"]
+    doc = result.to_json_dict()
+    assert doc["reconstruction"]["reliable"] is False
+    assert any("T_m1" in doubt for doubt in doc["reconstruction"]["doubts"])
+    assert "warning: reconstruction not reliable" in result.summary()

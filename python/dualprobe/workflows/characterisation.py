@@ -108,6 +108,22 @@ class Characterisation:
                             "time_constants": [list(taus[0][0] / psi), list(taus[1][0] / psi)]}
         return doc
 
+    def reconstruction_doubts(self) -> list[str]:
+        """Why the reconstruction should not be trusted (empty: no reason known): it rests on
+        a dominant time constant the data do not pin (its error scales the lag correction
+        one to one), or on a model that does not explain the signals."""
+        conf = self.estimate.confidence
+        doubts = []
+        if conf is not None:
+            for index, column in enumerate(self.columns):
+                name = f"tau{index + 1}_0"
+                if not conf.identifiable.get(name, True):
+                    doubts.append(f"it rests on {column}'s time constant, which the data do "
+                                  "not determine: the lag correction may swing by as much")
+        if self.model_check is not None and not self.model_check.adequate:
+            doubts.append("the model does not explain both signals (see the model check)")
+        return doubts
+
     def to_json_dict(self) -> dict[str, Any]:
         """The `--json` document."""
         est = self.estimate
@@ -147,6 +163,8 @@ class Characterisation:
                 "mode": self.reconstruction_mode,
                 "rmse_vs_reference": self.rmse_vs_reference,
                 "reference_column": self.reference_column,
+                "reliable": not self.reconstruction_doubts(),
+                "doubts": self.reconstruction_doubts(),
             }
         return jsonable(document)
 
@@ -213,6 +231,8 @@ class Characterisation:
             if self.rmse_vs_reference is not None:
                 text += f", RMSE vs {self.reference_column} {self.rmse_vs_reference:.4g} K"
             lines.append(text)
+            lines.extend(f"warning: reconstruction not reliable: {doubt}"
+                         for doubt in self.reconstruction_doubts())
         if check is not None:
             lines.extend(check.summary_lines())
         return "\n".join(lines)

@@ -174,6 +174,16 @@ def characterise_arrays(
     )
     if flow is not None and not svf:
         raise InputError(f"--flow needs the SVF method (auto or svf), not {method!r}")
+    if requested is None and fit_order == 2 and estimate.status != "ok":
+        # order chosen by evidence: data too weak for any second-order model (three or more
+        # near-null directions) may still determine a first-order pair, with its uncertainty
+        first = characterise_pair(
+            t1, t2, ts, method=method, order=1, hysteresis=hysteresis, noise_std=sigma,
+            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
+            uncertainty=uncertainty and svf,
+        )
+        if first.status == "ok":
+            estimate = first
     if estimate.status != "ok":
         raise EstimationError(_failure_message(estimate))
     if requested is None and estimate.identifiability.get("shared_poles") and estimate.order == 1:

@@ -100,7 +100,8 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
             raise EstimationError(
                 f"{column}: time constant {longest:.4g} s is longer than a third of the record "
                 f"({duration:.4g} s): the record cannot determine it; record longer, or with "
-                "larger and faster temperature changes (or use --order 1)")
+                "larger and faster temperature changes"
+                + (" (or use --order 1)" if len(taus) > 1 else ""))
     if residuals is None:
         return
     spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
