@@ -7,8 +7,8 @@ smoother's reconstruction) in a child process exactly as a user would, and repor
 the child's wall time, its peak resident memory (``ru_maxrss`` from ``wait4``) and the rows per
 second. The constant-time-constant cases (10 min, 1 h and 6 h at 100 Hz) show the cost's
 growth with length; the flow case (30 min at 10 Hz, time constants following the gas velocity,
-``--flow``) the field path. The core's streaming rate is compared with a memory-bandwidth
-baseline on the same arrays in the same run (the SVF estimator's update over the 1 h record).
+``--flow``) the field path. (The core's streaming rate against memory bandwidth is the
+throughput section's.)
 """
 
 from __future__ import annotations
@@ -67,43 +67,32 @@ def _write_case(case: PipelineCase, path: Path, seed: int) -> int:
     return int(rec.t.size)
 
 
+# Measures one command from a small intermediate process: a child's ru_maxrss on Linux
+# includes the memory of the process it was forked from (counted again at exec), so forking
+# the command from this (large) process would add this process's size to the figure.
+_MEASURE = """
+import os, sys, time
+start = time.perf_counter()
+pid = os.fork()
+if pid == 0:
+    null = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(null, 1)
+    os.execv(sys.argv[1], sys.argv[1:])
+_, status, usage = os.wait4(pid, 0)
+print(time.perf_counter() - start, usage.ru_maxrss, os.waitstatus_to_exitcode(status))
+"""
+
+
 def _run_child(command: list[str]) -> tuple[float, float, int, str]:
-    """Wall time (s), peak RSS (MB), exit status and the last stderr line of a child."""
+    """Wall time (s), peak RSS (MB), exit status and the last stderr line of a command."""
     with tempfile.TemporaryFile() as err:
-        start = time.perf_counter()
-        child = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=err)
-        _, status, usage = os.wait4(child.pid, 0)
-        wall = time.perf_counter() - start
-        child.returncode = os.waitstatus_to_exitcode(status)
+        done = subprocess.run([sys.executable, "-c", _MEASURE, *command], stdout=subprocess.PIPE,
+                              stderr=err, check=True, text=True)
+        wall, peak_kb, status = done.stdout.split()
         err.seek(0)
         lines = err.read().decode(errors="replace").strip().splitlines()
     # ru_maxrss is in kilobytes on Linux
-    return wall, usage.ru_maxrss / 1024.0, child.returncode, lines[-1] if lines else ""
-
-
-def _streaming_ratio(path: Path) -> dict[str, float]:
-    """The core's SVF update rate against reading both arrays once, on the same data."""
-    from dualprobe import _core  # type: ignore[attr-defined]
-    from dualprobe.io.recording import load_recording
-
-    rec = load_recording(path, ["T_m1", "T_m2"])
-    t1 = np.ascontiguousarray(rec.columns["T_m1"], dtype=np.float64)
-    t2 = np.ascontiguousarray(rec.columns["T_m2"], dtype=np.float64)
-    ts = rec.sample_interval
-
-    def best(action: Any) -> float:
-        times = []
-        for _ in range(3):
-            start = time.perf_counter()
-            action()
-            times.append(time.perf_counter() - start)
-        return min(times)
-
-    bandwidth = best(lambda: float(np.add.reduce(t1)) + float(np.add.reduce(t2)))
-    svf = best(lambda: _core.estimate_svf(t1, t2, ts, 1.0, order=1, static="unit",
-                                          sigma1=0.05, sigma2=0.05))
-    return {"svf_samples_per_s": t1.size / svf, "bandwidth_samples_per_s": t1.size / bandwidth,
-            "svf_vs_bandwidth": bandwidth / svf}
+    return float(wall), float(peak_kb) / 1024.0, int(status), lines[-1] if lines else ""
 
 
 def uncertainty_cost(seed: int = 3, repeats: int = 3) -> list[dict[str, Any]]:
@@ -144,7 +133,6 @@ def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: in
                    workdir: str | os.PathLike[str] | None = None) -> dict[str, Any]:
     """Run ``dualprobe characterise`` on each case's recording; see the module docstring."""
     rows: list[dict[str, Any]] = []
-    streaming: dict[str, float] = {}
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         for i, case in enumerate(cases):
             path = Path(tmp) / f"case{i}.csv"
@@ -158,12 +146,9 @@ def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: in
             rows.append({"case": case.label, "rows": n, "csv_mb": path.stat().st_size / 2**20,
                          "seconds": wall, "peak_mb": peak, "rows_per_s": n / wall,
                          "exit_status": status, "message": last if status else ""})
-            if case.label.startswith("1 h"):
-                streaming = _streaming_ratio(path)
             path.unlink()
     per_row = {r["case"]: r["seconds"] / r["rows"] for r in rows}
-    result: dict[str, Any] = {"cases": rows, "streaming": streaming,
-                              "uncertainty_cost": uncertainty_cost()}
+    result: dict[str, Any] = {"cases": rows, "uncertainty_cost": uncertainty_cost()}
     if "1 h at 100 Hz" in per_row and "6 h at 100 Hz" in per_row:
         # linear cost: the time per row at 6 h over that at 1 h stays near 1
         result["time_per_row_6h_vs_1h"] = per_row["6 h at 100 Hz"] / per_row["1 h at 100 Hz"]
@@ -176,11 +161,6 @@ def pipeline_table(result: dict[str, Any]) -> str:
     for r in result["cases"]:
         lines.append(f"| {r['case']} | {r['rows']} | {r['csv_mb']:.1f} | {r['seconds']:.2f} | "
                      f"{r['peak_mb']:.0f} | {r['rows_per_s']:.3g} | {r['exit_status']} |")
-    s = result.get("streaming") or {}
-    if s:
-        lines.append(f"\ncore SVF update {s['svf_samples_per_s']:.3g} samples/s, "
-                     f"{s['svf_vs_bandwidth']:.2f}x the bandwidth baseline "
-                     f"({s['bandwidth_samples_per_s']:.3g} samples/s)")
     for r in result.get("uncertainty_cost", []):
         lines.append(f"uncertainties, {r['case']}: {r['seconds_without']:.2f} s -> "
                      f"{r['seconds_with']:.2f} s ({r['added_percent']:+.0f} %)")
