@@ -10,7 +10,7 @@ DEB_PACKAGES := make g++ libeigen3-dev libgtest-dev clang gcc-arm-none-eabi \
 	libstdc++-arm-none-eabi-newlib libnewlib-arm-none-eabi qemu-system-arm
 STAMP := build/.stamps
 
-.PHONY: all demo test setup deb venv cpp-test asan-test pytest lint stubs firmware bench paper clean
+.PHONY: all demo test setup deb venv cpp-test asan-test pytest lint stubs firmware bench paper clean soak
 
 all: test
 
@@ -76,6 +76,13 @@ pytest: setup
 
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
+
+# The slow 10^8-tick float soak of the noise-robust estimator and reconstruction (issue 13);
+# ctest runs the same binary on 10^6 ticks.
+soak: setup
+	$(CMAKE) --preset dev -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
+	$(CMAKE) --build --preset dev --target dualprobe_c_api_soak_robust
+	build/cpp/firmware_sim/c_api_tests/dualprobe_c_api_soak_robust 100000000
 
 bench: setup
 	$(VENV)/bin/dualprobe bench --json out/bench.json

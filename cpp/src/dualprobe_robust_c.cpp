@@ -4,6 +4,7 @@
 // solve, so nothing runs in soft-float on a Cortex-M4F. Each C instance is raw storage
 // holding one core object built with placement new: no heap, no static initialisers.
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <new>
 #include <type_traits>
@@ -15,6 +16,86 @@
 
 namespace {
 
+// ---- deterministic float exp / expm1 / log ------------------------------------------------
+// libm's expf/expm1f/logf differ in the last bit between glibc and newlib; on the per-sample
+// path (the flow schedule, the Kalman's per-interval model) one ulp grows into a different
+// solve status and so a different run. These use only + - * / and IEEE sqrt-free bit
+// manipulation, so host and M4F round identically (with -ffp-contract=off); accuracy 2-3 ulp,
+// far below everything they feed (time constants known to 1e-3 at best).
+float bits_to_float(std::uint32_t bits) noexcept {
+  float value;
+  std::memcpy(&value, &bits, sizeof value);
+  return value;
+}
+
+// e^r - 1 for |r| <= ln2/2 (Taylor to degree 8: truncation r^9/9! < 2e-11), no cancellation.
+float expm1_reduced(float r) noexcept {
+  float p = 1.0f / 40320.0f;
+  p = p * r + 1.0f / 5040.0f;
+  p = p * r + 1.0f / 720.0f;
+  p = p * r + 1.0f / 120.0f;
+  p = p * r + 1.0f / 24.0f;
+  p = p * r + 1.0f / 6.0f;
+  p = p * r + 0.5f;
+  return r + r * r * p;
+}
+
+// x = n ln2 + r, |r| <= ln2/2 (Cody-Waite split of ln2).
+float reduce(float x, int* n) noexcept {
+  const float k = x * 1.44269504f;
+  *n = int(k + (k >= 0.0f ? 0.5f : -0.5f));
+  const float fn = float(*n);
+  return (x - fn * 0.693145751953125f) - fn * 1.428606820309417232e-6f;
+}
+
+float det_exp(float x) noexcept {
+  if (!(x < 88.0f)) return x != x ? x : bits_to_float(0x7F800000u);  // NaN, +inf
+  if (x < -87.0f) return 0.0f;
+  int n = 0;
+  const float r = reduce(x, &n);
+  return (1.0f + expm1_reduced(r)) * bits_to_float(std::uint32_t(n + 127) << 23);
+}
+
+float det_expm1(float x) noexcept {
+  if (x > -0.34657359f && x < 0.34657359f) return expm1_reduced(x);
+  return det_exp(x) - 1.0f;
+}
+
+// log(x) for finite x > 0: x = m 2^e with m in [sqrt(1/2), sqrt(2)), log m = 2 atanh(s),
+// s = (m - 1)/(m + 1), |s| <= 0.1716: series to s^11 (truncation < 1e-10).
+float det_log(float x) noexcept {
+  if (!(x > 0.0f) || x != x) return bits_to_float(0x7FC00000u);
+  std::uint32_t bits;
+  std::memcpy(&bits, &x, sizeof bits);
+  if (bits >= 0x7F800000u) return x;  // +inf
+  if (bits < 0x00800000u) return -87.3365448f;  // denormals: clamp (never on this path)
+  int e = int(bits >> 23) - 127;
+  float m = bits_to_float((bits & 0x007FFFFFu) | 0x3F800000u);
+  if (m > 1.41421356f) {
+    m *= 0.5f;
+    ++e;
+  }
+  const float s = (m - 1.0f) / (m + 1.0f);
+  const float s2 = s * s;
+  float p = 1.0f / 11.0f;
+  p = p * s2 + 1.0f / 9.0f;
+  p = p * s2 + 1.0f / 7.0f;
+  p = p * s2 + 1.0f / 5.0f;
+  p = p * s2 + 1.0f / 3.0f;
+  const float log_m = 2.0f * s + 2.0f * s * s2 * p;
+  const float fe = float(e);
+  return (fe * 1.428606820309417232e-6f + log_m) + fe * 0.693145751953125f;
+}
+
+// r^m_j of the basis: square roots only (IEEE sqrt is correctly rounded everywhere).
+void basis_weights(float ratio, float out[3]) noexcept {
+  const float root2 = std::sqrt(ratio);
+  const float root4 = std::sqrt(root2);
+  out[0] = root4;
+  out[1] = root2;
+  out[2] = root2 * root4;
+}
+
 // ---- SVF ---------------------------------------------------------------------------------
 
 // The flow basis: b_j = r^m_j with m_j = 0.25, 0.5, 0.75 (r = flow / flow_ref), two square
@@ -22,7 +103,6 @@ namespace {
 // (max relative error of the best combination over r in [0.3, 3]: below 1e-3 for m in
 // [0.2, 0.8], see tests/cpp/c_api/test_robust_c_api.cpp).
 constexpr int kBasis = 3;
-constexpr float kBasisExponents[kBasis] = {0.25f, 0.5f, 0.75f};
 constexpr int kExponentGrid = 9;  // points of the log-log fit of m
 
 template <int Order, int Basis>
@@ -50,6 +130,7 @@ struct RobustSvf {
   float max_ratio{1};
   float ratio_min{0};  // flows seen, relative to flow_ref
   float ratio_max{0};
+  std::uint32_t settle_rows{0};  // rows skipped after a gap: ceil(25 tf / Ts)
   int variant{-1};  // 0: order 1, 1: order 2, 2: order 1 + flow, 3: order 2 + flow; -1: none
 
   template <int Order, int Basis>
@@ -95,8 +176,10 @@ bool roots(float c, float d, int order, float taus[2]) noexcept {
 
 // Basis psi' = sum_j c_j r^m_j of a scheduled solve (c_K = 1).
 float basis_psi(const float coefficients[kBasis], float ratio) noexcept {
+  float b[kBasis];
+  basis_weights(ratio, b);
   float sum = 0.0f;
-  for (int j = 0; j < kBasis; ++j) sum += coefficients[j] * std::pow(ratio, kBasisExponents[j]);
+  for (int j = 0; j < kBasis; ++j) sum += coefficients[j] * b[j];
   return sum;
 }
 
@@ -125,15 +208,15 @@ dp_status solve_variant(RobustSvf* s, dp_svf_result_f32* out) noexcept {
       p2[j] /= at_ref;
     }
     // m: least-squares slope of log psi' on log r over the flows seen (log-spaced grid).
-    const float lo = std::log(s->ratio_min);
-    const float hi = std::log(s->ratio_max);
+    const float lo = det_log(s->ratio_min);
+    const float hi = det_log(s->ratio_max);
     if (!(hi - lo > 0.05f)) return DP_STATUS_INSUFFICIENT_EXCITATION;  // flow did not move
     float sx = 0.0f, sy = 0.0f, sxx = 0.0f, sxy = 0.0f;
     for (int i = 0; i < kExponentGrid; ++i) {
       const float x = lo + (hi - lo) * float(i) / float(kExponentGrid - 1);
-      const float psi = basis_psi(c, std::exp(x));
+      const float psi = basis_psi(c, det_exp(x));
       if (!finite_positive(psi)) return DP_STATUS_INFEASIBLE;
-      const float y = std::log(psi / at_ref);
+      const float y = det_log(psi / at_ref);
       sx += x;
       sy += y;
       sxx += x * x;
@@ -202,7 +285,7 @@ const RobustKalman* kalman(const dp_kalman_instance_f32* instance) noexcept {
 // expm1(x) / x without cancellation near 0.
 float relative_expm1(float x) noexcept {
   if (std::fabs(x) < 1e-4f) return 1.0f + 0.5f * x;
-  return std::expm1(x) / x;
+  return det_expm1(x) / x;
 }
 
 // Phi and q Ts w w^T + floors of one interval with the time constants tau_ref / psi: per stage
@@ -220,7 +303,7 @@ void interval_model(const RobustKalman& k, float psi, Eigen::Matrix<float, N, N>
   int index = 1;
   for (int sensor = 0; sensor < 2; ++sensor) {
     const float a = k.taus[sensor][0] / psi;
-    const float em = std::expm1(-h / a);  // ea - 1
+    const float em = det_expm1(-h / a);  // ea - 1
     const float ea = 1.0f + em;
     const float ea_half = std::sqrt(ea);
     phi(index, index) = ea;
@@ -229,7 +312,7 @@ void interval_model(const RobustKalman& k, float psi, Eigen::Matrix<float, N, N>
     tau_now[index - 1] = a;
     if (k.order[sensor] == 2) {
       const float b = k.taus[sensor][1] / psi;
-      const float emb = std::expm1(-h / b);
+      const float emb = det_expm1(-h / b);
       const float eb = 1.0f + emb;
       const float hd = h * (1.0f / b - 1.0f / a);
       const float rel = relative_expm1(hd);
@@ -320,7 +403,21 @@ dp_status dp_svf_init_f32(dp_svf_instance_f32* instance, const dp_svf_config_f32
   s->exponent = config->exponent;
   s->max_ratio = config->max_eigenvalue_ratio;
   s->variant = variant;
+  s->settle_rows = std::uint32_t(std::ceil(25.0f * config->filter_time_constant /
+                                           config->sample_interval));
   return DP_STATUS_OK;
+}
+
+void dp_svf_break_chain_f32(dp_svf_instance_f32* instance) {
+  if (instance == nullptr) return;
+  RobustSvf* s = svf(instance);
+  switch (s->variant) {
+    case 0: s->as<1, 0>()->break_chain(s->settle_rows); break;
+    case 1: s->as<2, 0>()->break_chain(s->settle_rows); break;
+    case 2: s->as<1, kBasis>()->break_chain(s->settle_rows); break;
+    case 3: s->as<2, kBasis>()->break_chain(s->settle_rows); break;
+    default: break;
+  }
 }
 
 void dp_svf_reset_f32(dp_svf_instance_f32* instance) {
@@ -346,14 +443,13 @@ dp_status dp_svf_update_f32(dp_svf_instance_f32* instance, float t1, float t2, f
   if (!std::isfinite(flow)) return DP_STATUS_NON_FINITE_INPUT;
   const float ratio = flow / s->flow_ref;
   if (!finite_positive(ratio)) return DP_STATUS_INVALID_ARGUMENT;
-  const float root2 = std::sqrt(ratio);
-  const float root4 = std::sqrt(root2);
-  const float weights[kBasis] = {root4, root2, root2 * root4};
+  float weights[kBasis];
+  basis_weights(ratio, weights);
   dualprobe::Status status;
   if (s->variant == 2) {
     status = s->as<1, kBasis>()->update(t1, t2, weights, 1.0f);
   } else {
-    const float phi = std::exp(-s->exponent * std::log(ratio));
+    const float phi = det_exp(-s->exponent * det_log(ratio));
     status = s->as<2, kBasis>()->update(t1, t2, weights, phi);
   }
   if (status == dualprobe::Status::ok) {
@@ -396,7 +492,7 @@ float dp_svf_schedule_f32(const dp_svf_instance_f32* instance, const dp_svf_resu
   if (instance == nullptr || result == nullptr || result->status != DP_STATUS_OK) return 1.0f;
   const RobustSvf* s = svf(instance);
   if (s->variant < 2 || !finite_positive(flow)) return 1.0f;
-  const float psi = std::exp(result->exponent * std::log(flow / s->flow_ref));
+  const float psi = det_exp(result->exponent * det_log(flow / s->flow_ref));
   return finite_positive(psi) ? psi : 1.0f;
 }
 

@@ -10,8 +10,9 @@
  *
  * Faults: as the difference loop (firmware.c). The estimator and the Kalman pause; the Kalman
  * restarts from the next healthy sample after `resume_after` healthy ticks (its offset and
- * spread re-initialised); the SVF's filter cascades continue across the gap (one interval
- * spans it: a transient that decays within a few filter time constants, with forgetting). */
+ * spread re-initialised); the SVF's chain is broken (dp_svf_break_chain_f32: its cascades join
+ * the gap in one interval and the next 25 tf/Ts rows, while that transient decays, are not
+ * accumulated; the accumulated moments survive). */
 #include <math.h>
 #include <string.h>
 
@@ -72,6 +73,7 @@ void firmware_robust_tick(firmware_state *state, uint32_t counts1, uint32_t coun
   out->published = 0u;
   if (flags != 0u) {
     if (!state->paused) {
+      dp_svf_break_chain_f32(&state->svf);
       dp_kalman_reset_f32(&state->kalman);
       state->paused = 1u;
     }

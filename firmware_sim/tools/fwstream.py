@@ -71,7 +71,7 @@ class Robust:
     quantisation: float = 0.0
     flow_ref: float = 0.0  # 0: no flow channel
     exponent: float = 0.5
-    max_eigenvalue_ratio: float = 0.5
+    max_eigenvalue_ratio: float = 0.1
     intensity: float = 1.0
     window: int = 16
     false_alarm: float = 1e-6

@@ -213,6 +213,10 @@ void dp_svf_reset_f32(dp_svf_instance_f32 *instance);
  * values: DP_STATUS_NON_FINITE_INPUT; flow <= 0: DP_STATUS_INVALID_ARGUMENT; either way the
  * state is untouched. */
 dp_status dp_svf_update_f32(dp_svf_instance_f32 *instance, float t1, float t2, float flow);
+/* A gap in the samples (a sensor fault): the filter cascades join the next sample to the last
+ * one and the next ceil(25 tf / Ts) rows, while their transient decays, are not accumulated;
+ * the accumulated data (and so the estimate) survive. */
+void dp_svf_break_chain_f32(dp_svf_instance_f32 *instance);
 /* Solves (instance unchanged but for the order-2 phi exponent after an ok solve; see above).
  * Never returns ok with a non-finite, non-positive or unidentifiable result. */
 dp_status dp_svf_solve_f32(dp_svf_instance_f32 *instance, dp_svf_result_f32 *result);
