@@ -189,7 +189,16 @@ dp_status solve_variant(RobustSvf* s, dp_svf_result_f32* out) noexcept {
   out->order = Order;
   out->rows = solved.rows;
   out->eigenvalue_ratio = solved.eigenvalue_ratio;
-  if (solved.status != dualprobe::Status::ok) return static_cast<dp_status>(solved.status);
+  // With a schedule basis the core normalises theta by the last basis coefficient, whose sign
+  // is not known in advance: a relation with a_K < 0 comes back with negative polynomials and
+  // status infeasible. Dividing by psi'(flow_ref) below restores the sign, so only the other
+  // refusals (no relation at all: theta left zero) stop a scheduled solve here.
+  const bool sign_only = Basis > 0 && solved.status == dualprobe::Status::infeasible &&
+                         solved.theta.allFinite() &&
+                         solved.theta[solved.theta.size() - 1] == -1.0f;
+  if (solved.status != dualprobe::Status::ok && !sign_only) {
+    return static_cast<dp_status>(solved.status);
+  }
   if (!(solved.eigenvalue_ratio <= s->max_ratio) || !std::isfinite(solved.eigenvalue_ratio)) {
     return DP_STATUS_INSUFFICIENT_EXCITATION;  // a relation, but not a single identifiable one
   }
@@ -201,8 +210,8 @@ dp_status solve_variant(RobustSvf* s, dp_svf_result_f32* out) noexcept {
     constexpr int first = 2 * Order;
     float c[kBasis];
     for (int j = 0; j < kBasis; ++j) c[j] = -solved.theta[first + j];
-    const float at_ref = basis_psi(c, 1.0f);
-    if (!finite_positive(at_ref)) return DP_STATUS_INFEASIBLE;
+    const float at_ref = basis_psi(c, 1.0f);  // negative when a_K < 0: the division fixes it
+    if (!(std::fabs(at_ref) > 0.0f) || !std::isfinite(at_ref)) return DP_STATUS_INFEASIBLE;
     for (int j = 0; j < Order; ++j) {
       p1[j] /= at_ref;
       p2[j] /= at_ref;
@@ -214,9 +223,9 @@ dp_status solve_variant(RobustSvf* s, dp_svf_result_f32* out) noexcept {
     float sx = 0.0f, sy = 0.0f, sxx = 0.0f, sxy = 0.0f;
     for (int i = 0; i < kExponentGrid; ++i) {
       const float x = lo + (hi - lo) * float(i) / float(kExponentGrid - 1);
-      const float psi = basis_psi(c, det_exp(x));
+      const float psi = basis_psi(c, det_exp(x)) / at_ref;  // psi(flow_ref) = 1
       if (!finite_positive(psi)) return DP_STATUS_INFEASIBLE;
-      const float y = det_log(psi / at_ref);
+      const float y = det_log(psi);
       sx += x;
       sy += y;
       sxx += x * x;

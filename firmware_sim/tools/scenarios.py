@@ -142,7 +142,7 @@ def drive_cycle_100hz(*, seed: int = 3, duration: float = 300.0, order: int = 2,
     calibration = Calibration(sample_interval=ts, sigma1=0.02, sigma2=0.02, forgetting=1.0,
                               solve_every=500, resume_after=10)
     robust = Robust(order=order, filter_time_constant=0.6, quantisation=6e-5, flow_ref=20.0,
-                    exponent=0.5, max_eigenvalue_ratio=0.1, intensity=intensity, window=16,
+                    exponent=0.5, max_eigenvalue_ratio=0.1, intensity=intensity, window=8,
                     tau_min=0.02, tau_max=30.0)
     taus1 = (1.2, 0.15) if order == 2 else (1.35,)
     taus2 = (3.0, 0.3) if order == 2 else (3.3,)
@@ -187,7 +187,7 @@ def small_excitation_100hz(*, seed: int = 5, duration: float = 150.0) -> RobustS
                               solve_every=100, resume_after=10, initial_tau1=1.1,
                               initial_tau2=3.2)
     robust = Robust(order=1, filter_time_constant=0.6, quantisation=6e-5, flow_ref=0.0,
-                    max_eigenvalue_ratio=0.1, intensity=0.05, window=16, tau_min=0.02,
+                    max_eigenvalue_ratio=0.1, intensity=0.05, window=8, tau_min=0.02,
                     tau_max=30.0)
     return RobustScenario("small_excitation", calibration, robust, _counts(t1), _counts(t2),
                           np.zeros(n, dtype=np.float32), gas, c1, c2, (taus[0],), (taus[1],))
