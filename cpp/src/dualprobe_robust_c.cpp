@@ -131,6 +131,7 @@ struct RobustSvf {
   float ratio_min{0};  // flows seen, relative to flow_ref
   float ratio_max{0};
   std::uint32_t settle_rows{0};  // rows skipped after a gap: ceil(25 tf / Ts)
+  std::uint64_t transient_samples{0};  // the core's start-up window, (60 + 2 m) tf / Ts rows
   int variant{-1};  // 0: order 1, 1: order 2, 2: order 1 + flow, 3: order 2 + flow; -1: none
 
   template <int Order, int Basis>
@@ -189,6 +190,13 @@ dp_status solve_variant(RobustSvf* s, dp_svf_result_f32* out) noexcept {
   out->order = Order;
   out->rows = solved.rows;
   out->eigenvalue_ratio = solved.eigenvalue_ratio;
+  // Within the start-up window the float solve must project large filter transients out of
+  // float moments, and its estimates are unreliable (drive cycle: refused or off by several
+  // percent, and an order-2 estimate would feed phi's exponent): refused until the window
+  // has passed (with forgetting the transients have decayed by then as well).
+  if (s->as<Order, Basis>()->samples() < s->transient_samples) {
+    return DP_STATUS_INSUFFICIENT_EXCITATION;
+  }
   // With a schedule basis the core normalises theta by the last basis coefficient, whose sign
   // is not known in advance: a relation with a_K < 0 comes back with negative polynomials and
   // status infeasible. Dividing by psi'(flow_ref) below restores the sign, so only the other
@@ -414,6 +422,9 @@ dp_status dp_svf_init_f32(dp_svf_instance_f32* instance, const dp_svf_config_f32
   s->variant = variant;
   s->settle_rows = std::uint32_t(std::ceil(25.0f * config->filter_time_constant /
                                            config->sample_interval));
+  s->transient_samples = std::uint64_t(
+      std::ceil((60.0 + 2.0 * (config->order + 1)) * double(config->filter_time_constant) /
+                double(config->sample_interval))) + 1u;
   return DP_STATUS_OK;
 }
 
