@@ -9,7 +9,8 @@
  * Only FEED ticks after the first SKIP of the stream are used (the trace of every executed
  * instruction is written to disk, ~500 bytes per instruction, and longer runs only repeat the
  * same paths). The float solves within the start-up transient window (66 tf/Ts rows) are
- * refused (infeasible: the float projection of the transients is not exact enough), so FEED
+ * refused (insufficient excitation: the C API does not trust the float projection of the
+ * start-up transients there, see dp_svf_solve_f32), so FEED
  * spans that window and the solves measured include ok ones (the full path: eigen-solve,
  * exponent fit, roots); the trace is then ~2.5 GB, deleted after counting. */
 #include <string.h>
