@@ -5,7 +5,8 @@ if(SKBUILD)
 endif()
 
 add_library(dualprobe_c STATIC ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_c.cpp
-  ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_robust_c.cpp)
+  ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_svf_c.cpp
+  ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_kalman_c.cpp)
 add_library(dualprobe::c ALIAS dualprobe_c)
 set_target_properties(dualprobe_c PROPERTIES
   EXPORT_NAME c
