@@ -13,7 +13,7 @@ CHECK_DEPS := PYTHON=$(PYTHON) tools/check-build-deps
 STAMP := build/.stamps
 
 .PHONY: all demo test setup setup-demo deb deb-demo venv venv-demo venv-deps cpp-test \
-	asan-test pytest lint stubs firmware bench paper clean
+	asan-test pytest lint stubs firmware soak bench paper clean
 
 all: test
 
@@ -112,6 +112,13 @@ pytest: setup
 
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
+
+# The slow 10^8-tick float soak of the noise-robust estimator and reconstruction (issue 13);
+# ctest runs the same binary on 10^6 ticks.
+soak: setup
+	$(CMAKE) --preset dev -DCMAKE_MAKE_PROGRAM=$(abspath $(VENV)/bin/ninja) >/dev/null
+	$(CMAKE) --build --preset dev --target dualprobe_c_api_soak_robust
+	build/cpp/firmware_sim/c_api_tests/dualprobe_c_api_soak_robust 100000000
 
 bench: setup-demo
 	$(VENV)/bin/dualprobe bench --json out/bench.json

@@ -4,7 +4,9 @@ if(SKBUILD)
   return()  # the Python wheel needs neither the C library nor its install rules
 endif()
 
-add_library(dualprobe_c STATIC ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_c.cpp)
+add_library(dualprobe_c STATIC ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_c.cpp
+  ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_svf_c.cpp
+  ${PROJECT_SOURCE_DIR}/cpp/src/dualprobe_kalman_c.cpp)
 add_library(dualprobe::c ALIAS dualprobe_c)
 set_target_properties(dualprobe_c PROPERTIES
   EXPORT_NAME c

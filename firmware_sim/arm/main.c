@@ -50,6 +50,8 @@ int main(void) {
   put_dec_line("estimator_bytes=", (uint32_t)sizeof(dp_diff_instance_f32));
   put_dec_line("reconstruction_bytes=", (uint32_t)sizeof(dp_recon_instance_f32));
   put_dec_line("firmware_state_bytes=", (uint32_t)sizeof(firmware_state));
+  put_dec_line("svf_bytes=", (uint32_t)sizeof(dp_svf_instance_f32));
+  put_dec_line("kalman_instance_bytes=", (uint32_t)sizeof(dp_kalman_instance_f32));
   put_dec_line("stack_high_water_bytes=", platform_stack_high_water_bytes());
   return status;
 }

@@ -19,7 +19,9 @@ static float read_f32(const uint8_t *p) {
 
 int firmware_parse_header(const uint8_t header[FIRMWARE_HEADER_BYTES], firmware_config *config) {
   if (read_u32(header + 0) != FIRMWARE_MAGIC) return -1;
-  if (read_u32(header + 4) != FIRMWARE_VERSION) return -2;
+  if (read_u32(header + 4) != FIRMWARE_VERSION && read_u32(header + 4) != FIRMWARE_VERSION_ROBUST) {
+    return -2;
+  }
   config->ticks = read_u32(header + 8);
   config->sample_interval = read_f32(header + 12);
   config->method = (dp_method)read_u32(header + 16);
@@ -33,6 +35,29 @@ int firmware_parse_header(const uint8_t header[FIRMWARE_HEADER_BYTES], firmware_
   config->initial_tau1 = read_f32(header + 48);
   config->initial_tau2 = read_f32(header + 52);
   if (config->solve_every == 0u) return -3;
+  const uint32_t version = read_u32(header + 4);
+  config->version = version;
+  config->estimator = ESTIMATOR_DIFFERENCE;
+  return 0;
+}
+
+int firmware_parse_header2(const uint8_t extra[FIRMWARE_HEADER2_EXTRA_BYTES],
+                           firmware_config *config) {
+  const uint32_t estimator = read_u32(extra + 0);
+  if (estimator > (uint32_t)ESTIMATOR_SVF) return -4;
+  config->estimator = (firmware_estimator)estimator;
+  config->order = read_u32(extra + 4);
+  config->filter_time_constant = read_f32(extra + 8);
+  config->quantisation = read_f32(extra + 12);
+  config->flow_ref = read_f32(extra + 16);
+  config->exponent = read_f32(extra + 20);
+  config->max_eigenvalue_ratio = read_f32(extra + 24);
+  config->intensity = read_f32(extra + 28);
+  config->window = read_u32(extra + 32);
+  config->false_alarm = read_f32(extra + 36);
+  config->tau_min = read_f32(extra + 40);
+  config->tau_max = read_f32(extra + 44);
+  if (!(config->tau_min >= 0.0f) || !(config->tau_max > config->tau_min)) return -5;
   return 0;
 }
 
@@ -50,6 +75,7 @@ static float quiet_nan(void) {
 dp_status firmware_init(firmware_state *state, const firmware_config *config) {
   memset(state, 0, sizeof *state);
   state->config = *config;
+  if (config->estimator == ESTIMATOR_SVF) return firmware_robust_init(state);
   const dp_diff_config_f32 diff = {config->sample_interval, config->method, config->sigma1,
                                    config->sigma2, config->forgetting};
   dp_status status = dp_diff_init_f32(&state->estimator, &diff);
@@ -67,19 +93,38 @@ dp_status firmware_init(firmware_state *state, const firmware_config *config) {
   return DP_STATUS_OK;
 }
 
-void firmware_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, tick_output *out) {
-  const firmware_config *config = &state->config;
+uint32_t firmware_read_channels(uint32_t counts1, uint32_t counts2, float *t1, float *t2) {
   uint32_t flags = 0u;
-  float t1 = quiet_nan();
-  float t2 = quiet_nan();
-  const channel_state ch1 = adc_read_channel(counts1, &t1);
-  const channel_state ch2 = adc_read_channel(counts2, &t2);
+  *t1 = quiet_nan();
+  *t2 = quiet_nan();
+  const channel_state ch1 = adc_read_channel(counts1, t1);
+  const channel_state ch2 = adc_read_channel(counts2, t2);
   if (ch1 == CHANNEL_OPEN) flags |= FLAG_CH1_OPEN;
   if (ch1 == CHANNEL_SHORT) flags |= FLAG_CH1_SHORT;
   if (ch2 == CHANNEL_OPEN) flags |= FLAG_CH2_OPEN;
   if (ch2 == CHANNEL_SHORT) flags |= FLAG_CH2_SHORT;
-  if (ch1 != CHANNEL_OK) t1 = quiet_nan();
-  if (ch2 != CHANNEL_OK) t2 = quiet_nan();
+  if (ch1 != CHANNEL_OK) *t1 = quiet_nan();
+  if (ch2 != CHANNEL_OK) *t2 = quiet_nan();
+  return flags;
+}
+
+float firmware_nan(void) { return quiet_nan(); }
+
+void firmware_tick_flow(firmware_state *state, uint32_t counts1, uint32_t counts2, float flow,
+                        tick_output *out) {
+  if (state->config.estimator == ESTIMATOR_SVF) {
+    firmware_robust_tick(state, counts1, counts2, flow, out);
+  } else {
+    firmware_tick(state, counts1, counts2, out);
+  }
+}
+
+void firmware_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, tick_output *out) {
+  const firmware_config *config = &state->config;
+  float t1;
+  float t2;
+  uint32_t flags = firmware_read_channels(counts1, counts2, &t1, &t2);
+  out->published = 0u;
 
   out->gas = quiet_nan();
   if (flags != 0u) {
@@ -170,6 +215,10 @@ static void put_text(int stream, const char *text) {
   platform_write(stream, text, (uint32_t)strlen(text));
 }
 
+/* Static, not on the stack: the stack high-water mark then measures the control path. */
+static firmware_state g_state;
+static text_buffer g_out;
+
 static void emit(text_buffer *buffer, const tick_output *out) {
   /* T <tick> <flags> <t1> <t2> <gas> */
   put_char(buffer, 'T');
@@ -181,7 +230,23 @@ static void emit(text_buffer *buffer, const tick_output *out) {
   put_float(buffer, out->t2);
   put_float(buffer, out->gas);
   put_char(buffer, '\n');
-  if (out->flags & FLAG_SOLVED) {
+  if ((out->flags & FLAG_SOLVED) && g_state.config.estimator == ESTIMATOR_SVF) {
+    /* R <tick> <status> <published> <tau1a> <tau1b> <tau2a> <tau2b> <exponent> <ratio> */
+    put_char(buffer, 'R');
+    put_char(buffer, ' ');
+    put_dec(buffer, out->tick);
+    put_char(buffer, ' ');
+    put_dec(buffer, (uint32_t)out->robust.status);
+    put_char(buffer, ' ');
+    put_dec(buffer, (uint32_t)out->published);
+    put_float(buffer, out->robust.tau1[0]);
+    put_float(buffer, out->robust.tau1[1]);
+    put_float(buffer, out->robust.tau2[0]);
+    put_float(buffer, out->robust.tau2[1]);
+    put_float(buffer, out->robust.exponent);
+    put_float(buffer, out->robust.eigenvalue_ratio);
+    put_char(buffer, '\n');
+  } else if (out->flags & FLAG_SOLVED) {
     /* S <tick> <status> <beta> <b1> <b2> <tau1> <tau2> <eigenvalue ratio> */
     put_char(buffer, 'S');
     put_char(buffer, ' ');
@@ -198,9 +263,6 @@ static void emit(text_buffer *buffer, const tick_output *out) {
   }
 }
 
-/* Static, not on the stack: the stack high-water mark then measures the control path. */
-static firmware_state g_state;
-static text_buffer g_out;
 
 int firmware_run(const char *path) {
   if (path == NULL) {
@@ -214,24 +276,30 @@ int firmware_run(const char *path) {
   }
   uint8_t header[FIRMWARE_HEADER_BYTES];
   firmware_config config;
+  uint8_t extra[FIRMWARE_HEADER2_EXTRA_BYTES];
   if (platform_read(handle, header, FIRMWARE_HEADER_BYTES) != (int32_t)FIRMWARE_HEADER_BYTES ||
-      firmware_parse_header(header, &config) != 0) {
+      firmware_parse_header(header, &config) != 0 ||
+      (config.version == FIRMWARE_VERSION_ROBUST &&
+       (platform_read(handle, extra, FIRMWARE_HEADER2_EXTRA_BYTES) !=
+            (int32_t)FIRMWARE_HEADER2_EXTRA_BYTES ||
+        firmware_parse_header2(extra, &config) != 0))) {
     platform_close(handle);
-    put_text(PLATFORM_STDERR, "error: input header is not a version-1 DPFW block\n");
+    put_text(PLATFORM_STDERR, "error: input header is not a version-1 or -2 DPFW block\n");
     return 2;
   }
+  const uint32_t words = config.version == FIRMWARE_VERSION_ROBUST ? 3u : 2u;
   if (firmware_init(&g_state, &config) != DP_STATUS_OK) {
     platform_close(handle);
     put_text(PLATFORM_STDERR, "error: invalid calibration (estimator or reconstruction)\n");
     return 2;
   }
   /* Counts arrive in chunks, as from an ADC DMA buffer. */
-  uint8_t chunk[64 * 8];
+  uint8_t chunk[64 * 12];
   uint32_t done = 0u;
   while (done < config.ticks) {
     uint32_t want = config.ticks - done;
     if (want > 64u) want = 64u;
-    if (platform_read(handle, chunk, want * 8u) != (int32_t)(want * 8u)) {
+    if (platform_read(handle, chunk, want * 4u * words) != (int32_t)(want * 4u * words)) {
       platform_close(handle);
       flush(&g_out);
       put_text(PLATFORM_STDERR, "error: input ends before the announced number of ticks\n");
@@ -239,7 +307,9 @@ int firmware_run(const char *path) {
     }
     for (uint32_t i = 0; i < want; ++i) {
       tick_output out;
-      firmware_tick(&g_state, read_u32(chunk + 8u * i), read_u32(chunk + 8u * i + 4u), &out);
+      const uint8_t *row = chunk + 4u * words * i;
+      const float flow = words == 3u ? read_f32(row + 8u) : 0.0f;
+      firmware_tick_flow(&g_state, read_u32(row), read_u32(row + 4u), flow, &out);
       emit(&g_out, &out);
     }
     done += want;

@@ -15,10 +15,19 @@
 #include "adc.h"
 #include "dualprobe/dualprobe.h"
 
-/* Calibration block of the input stream, little-endian, 56 bytes (see README). */
+/* Calibration block of the input stream, little-endian (see README): version 1 is 56 bytes
+ * and two uint32 counts per tick; version 2 appends 48 bytes (the robust estimator and the
+ * Kalman reconstruction) and carries a third word per tick, the exhaust flow (float bits). */
 #define FIRMWARE_MAGIC 0x57465044ul /* "DPFW" */
 #define FIRMWARE_VERSION 1u
+#define FIRMWARE_VERSION_ROBUST 2u
 #define FIRMWARE_HEADER_BYTES 56u
+#define FIRMWARE_HEADER2_EXTRA_BYTES 48u
+
+typedef enum firmware_estimator {
+  ESTIMATOR_DIFFERENCE = 0, /* the paper's difference estimator + exact inverse (version 1) */
+  ESTIMATOR_SVF = 1         /* SVF cross-relation estimator + causal Kalman reconstruction */
+} firmware_estimator;
 
 typedef struct firmware_config {
   uint32_t ticks;
@@ -31,6 +40,19 @@ typedef struct firmware_config {
   dp_source source;
   float lowpass_tau;               /* s, 0 = none */
   float initial_tau1, initial_tau2; /* s; 0 = no reconstruction before the first good solve */
+  /* Version 2 only (version 1: estimator = ESTIMATOR_DIFFERENCE, no flow word). */
+  uint32_t version;
+  firmware_estimator estimator;
+  uint32_t order;             /* 1 or 2: SVF order and stages per sensor in the Kalman */
+  float filter_time_constant; /* s */
+  float quantisation;         /* K, the ADC step near the operating point (noise floor) */
+  float flow_ref;             /* flow unit; 0 = no flow channel (tracking with forgetting) */
+  float exponent;             /* initial m (order 2 with flow) */
+  float max_eigenvalue_ratio; /* identifiability gate of a solve */
+  float intensity;            /* Kalman gas random-walk intensity, K^2/s */
+  uint32_t window;            /* GLR candidates, 0 = no jump detection */
+  float false_alarm;          /* GLR false-alarm probability per sample */
+  float tau_min, tau_max;     /* s: plausible time constants; a solve outside is not published */
 } firmware_config;
 
 /* Tick flags. */
@@ -47,6 +69,9 @@ typedef struct firmware_state {
   firmware_config config;
   dp_diff_instance_f32 estimator;
   dp_recon_instance_f32 reconstruction;
+  dp_svf_instance_f32 svf;
+  dp_kalman_instance_f32 kalman;
+  dp_svf_result_f32 good; /* the last published SVF result */
   uint32_t tick;
   uint32_t healthy_run; /* consecutive healthy ticks */
   uint8_t paused;
@@ -58,14 +83,31 @@ typedef struct tick_output {
   uint32_t flags;
   float t1, t2;  /* C; NaN for a faulted channel */
   float gas;     /* C; NaN unless FLAG_GAS_VALID */
-  dp_diff_result_f32 result; /* valid with FLAG_SOLVED */
+  dp_diff_result_f32 result; /* valid with FLAG_SOLVED (difference estimator) */
+  dp_svf_result_f32 robust;  /* valid with FLAG_SOLVED (SVF estimator) */
+  uint8_t published;         /* the SVF solve passed every check and retuned the Kalman */
 } tick_output;
 
-/* Parses and validates the 56-byte calibration block; returns 0 or a negative error. */
+/* Parses and validates the 56-byte calibration block; returns 0 or a negative error. A
+ * version-2 block returns 0 with config->version = 2: the caller then reads the 48 further
+ * bytes with firmware_parse_header2. */
 int firmware_parse_header(const uint8_t header[FIRMWARE_HEADER_BYTES], firmware_config *config);
+int firmware_parse_header2(const uint8_t extra[FIRMWARE_HEADER2_EXTRA_BYTES],
+                           firmware_config *config);
 /* Returns DP_STATUS_OK, or the init status of the estimator / reconstruction. */
 dp_status firmware_init(firmware_state *state, const firmware_config *config);
 void firmware_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, tick_output *out);
+/* The version-2 tick: flow is this tick's exhaust flow (ignored without a flow channel). */
+void firmware_tick_flow(firmware_state *state, uint32_t counts1, uint32_t counts2, float flow,
+                        tick_output *out);
+
+/* Shared by both loops (firmware.c): ADC -> CVD -> open/short flags; t NaN when faulted. */
+uint32_t firmware_read_channels(uint32_t counts1, uint32_t counts2, float *t1, float *t2);
+float firmware_nan(void);
+/* The SVF + Kalman loop (firmware_robust.c). */
+dp_status firmware_robust_init(firmware_state *state);
+void firmware_robust_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, float flow,
+                          tick_output *out);
 
 /* Runs the whole input stream at `path`, one text line per tick on stdout (README: output
  * format); returns the process exit status (0 ok, 2 bad input). */

@@ -29,6 +29,13 @@ PHASES: dict[int, tuple[str, str]] = {
     6: ("kalman", "bench_kalman_update"),
     7: ("kalman_configure", "bench_kalman_init"),
 }
+# arm/bench_robust.c (issue 13): (phase, name, function); a phase may count several functions.
+PHASES_ROBUST: list[tuple[int, str, str]] = [
+    (1, "svf_update", "dp_svf_update_f32"),
+    (1, "svf_solve", "dp_svf_solve_f32"),
+    (2, "kalman_update", "dp_kalman_update_f32"),
+    (3, "robust_tick", "firmware_robust_tick"),
+]
 PHASE_MARKER = "bench_phase"
 
 _OBJDUMP_LINE = re.compile(r"^\s*([0-9a-f]+):\s+((?:[0-9a-f]{4}\s)+)\s*(\S+)")
@@ -100,20 +107,24 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("trace", type=Path)
     parser.add_argument("--json", type=Path, required=True)
     parser.add_argument("--prefix", default="arm-none-eabi-")
+    parser.add_argument("--table", choices=("default", "robust"), default="default")
     args = parser.parse_args(argv)
+    table = ([(phase, name, function) for phase, (name, function) in PHASES.items()]
+             if args.table == "default" else PHASES_ROBUST)
+    phase_count = max(phase for phase, _, _ in table)
 
     lengths, mnemonics = instruction_table(args.elf, args.prefix + "objdump")
     symbols = symbol_addresses(args.elf, args.prefix + "nm")
     pcs = read_pcs(args.trace)
     marker = symbols[PHASE_MARKER]
     starts = [i for i, pc in enumerate(pcs) if pc == marker]
-    if len(starts) != len(PHASES) + 1:
-        print(f"error: expected {len(PHASES) + 1} phases in the trace, found {len(starts)}",
+    if len(starts) != phase_count + 1:
+        print(f"error: expected {phase_count + 1} phases in the trace, found {len(starts)}",
               file=sys.stderr)
         return 1
     result: dict[str, object] = {"trace_instructions": len(pcs), "functions": {}}
     functions: dict[str, object] = {}
-    for phase, (name, function) in PHASES.items():
+    for phase, name, function in table:
         counts = count_calls(pcs, starts[phase - 1], starts[phase], symbols[function],
                              lengths, mnemonics)
         if not counts:

@@ -18,6 +18,9 @@ import numpy as np
 MAGIC = b"DPFW"
 VERSION = 1
 HEADER = struct.Struct("<4sIIfIfffIIIfff")
+VERSION_ROBUST = 2
+HEADER2 = struct.Struct("<IIffffffIfff")  # appended by version 2 (firmware.h)
+ESTIMATORS = {"difference": 0, "svf": 1}
 METHODS = {"ls": 0, "tls": 1, "gtls": 2}
 SOURCES = {"sensor1": 0, "sensor2": 1, "weighted": 2}
 STATUSES = ("ok", "insufficient_excitation", "infeasible", "non_finite_input",
@@ -58,6 +61,24 @@ class Calibration:
     initial_tau2: float = 0.0
 
 
+@dataclass(frozen=True)
+class Robust:
+    """Version-2 calibration: the SVF estimator and the Kalman reconstruction (firmware.h)."""
+
+    estimator: str = "svf"
+    order: int = 1
+    filter_time_constant: float = 0.5
+    quantisation: float = 0.0
+    flow_ref: float = 0.0  # 0: no flow channel
+    exponent: float = 0.5
+    max_eigenvalue_ratio: float = 0.1
+    intensity: float = 1.0
+    window: int = 16
+    false_alarm: float = 1e-6
+    tau_min: float = 0.01
+    tau_max: float = 100.0
+
+
 def ohm_to_counts(resistance_ohm: np.ndarray) -> np.ndarray:
     """The ADC model: round(R / R_ref * 2^24), clipped to the converter's range."""
     counts = np.rint(np.asarray(resistance_ohm, dtype=float) / ADC_R_REF_OHM * ADC_FULL_SCALE)
@@ -88,6 +109,33 @@ def write_stream(
     Path(path).write_bytes(header + pairs.tobytes())
 
 
+def write_stream2(
+    path: str | Path, calibration: Calibration, robust: Robust, counts1: np.ndarray,
+    counts2: np.ndarray, flow: np.ndarray,
+) -> None:
+    """Version 2: both calibration blocks, then (counts1, counts2, flow as float32) per tick."""
+    c1 = np.asarray(counts1, dtype=np.uint32)
+    c2 = np.asarray(counts2, dtype=np.uint32)
+    f = np.asarray(flow, dtype=np.float32)
+    if not (c1.shape == c2.shape == f.shape) or c1.ndim != 1:
+        raise ValueError("counts and flow must be 1-D of equal length")
+    cal, rob = calibration, robust
+    header = HEADER.pack(
+        MAGIC, VERSION_ROBUST, c1.size, cal.sample_interval, METHODS[cal.method], cal.sigma1,
+        cal.sigma2, cal.forgetting, cal.solve_every, cal.resume_after, SOURCES[cal.source],
+        cal.lowpass_tau, cal.initial_tau1, cal.initial_tau2,
+    ) + HEADER2.pack(
+        ESTIMATORS[rob.estimator], rob.order, rob.filter_time_constant, rob.quantisation,
+        rob.flow_ref, rob.exponent, rob.max_eigenvalue_ratio, rob.intensity, rob.window,
+        rob.false_alarm, rob.tau_min, rob.tau_max,
+    )
+    rows = np.empty((c1.size, 3), dtype="<u4")
+    rows[:, 0] = c1
+    rows[:, 1] = c2
+    rows[:, 2] = f.astype("<f4").view("<u4")
+    Path(path).write_bytes(header + rows.tobytes())
+
+
 @dataclass
 class FirmwareOutput:
     """Parsed firmware output: per tick (``flags``, ``t1``, ``t2``, ``gas``) and per solve."""
@@ -99,6 +147,8 @@ class FirmwareOutput:
     solve_ticks: np.ndarray  # tick index of each solve
     solve_status: np.ndarray  # dualprobe status code of each solve
     solve_values: np.ndarray  # float32 (n_solves, 6): beta, b1, b2, tau1, tau2, ratio
+    # SVF solves ("R" lines): published flag, and (tau1a, tau1b, tau2a, tau2b, m, ratio)
+    solve_published: np.ndarray | None = None
 
     @property
     def ticks(self) -> int:
@@ -113,12 +163,16 @@ def parse_output(text: str) -> FirmwareOutput:
     """Parse the firmware's stdout; raises ValueError on any malformed line."""
     ticks: list[tuple[int, int, list[str]]] = []
     solves: list[tuple[int, int, list[str]]] = []
+    published: list[int] = []
     for number, line in enumerate(text.splitlines(), start=1):
         words = line.split()
         if len(words) == 6 and words[0] == "T":
             ticks.append((int(words[1]), int(words[2], 16), words[3:]))
         elif len(words) == 9 and words[0] == "S":
             solves.append((int(words[1]), int(words[2]), words[3:]))
+        elif len(words) == 10 and words[0] == "R":
+            solves.append((int(words[1]), int(words[2]), words[4:]))
+            published.append(int(words[3]))
         else:
             raise ValueError(f"firmware output line {number} is malformed: {line[:60]!r}")
     if [t[0] for t in ticks] != list(range(len(ticks))):
@@ -133,6 +187,7 @@ def parse_output(text: str) -> FirmwareOutput:
         solve_ticks=np.array([s[0] for s in solves], dtype=np.int64),
         solve_status=np.array([s[1] for s in solves], dtype=np.int64),
         solve_values=solve_floats,
+        solve_published=np.array(published, dtype=np.int64) if published else None,
     )
 
 

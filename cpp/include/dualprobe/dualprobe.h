@@ -153,8 +153,119 @@ dp_status dp_recon_block_f32(dp_recon_instance_f32 *instance, const float *t1, c
 /* Name of a status ("ok", "infeasible", ...); "unknown" for values outside the enum. */
 const char *dp_status_string(dp_status status);
 
-/* Causal Kalman reconstruction: reserved for the dp_kalman_*_f32 family (issue: noise-robust
- * reconstruction on the ECU); the firmware budget report already has a slot for its cost. */
+/* ---- Noise-robust SVF cross-relation estimator (design 1.4, 1.5; issue 13) ----------------
+ * dualprobe::SvfEstimator<float, order, unit, ..., SolveScalar = float, Basis> behind a C
+ * instance: every tick dp_svf_update_f32 (O(1), float), every N ticks dp_svf_solve_f32 (a
+ * float GTLS solve, no double arithmetic). With flow_ref > 0 the static relation is scheduled
+ * by the flow channel: psi = sum_j a_j (flow/flow_ref)^m_j over the fixed basis
+ * m_j = 0.25, 0.5, 0.75 (square roots only), and the solve fits tau = tau_ref
+ * (flow/flow_ref)^-m to it (tau_ref exactly: psi(flow_ref) normalises; m by least squares of
+ * log psi on log flow over the flows seen). Without a flow channel (flow_ref = 0) the
+ * estimator tracks the time constants with forgetting (their ratio constant in the window).
+ * Order 2 with a flow channel: the second-derivative column needs phi = 1/psi per sample; it
+ * uses (flow/flow_ref)^-m with the exponent of the last ok solve (initially `exponent`). */
+
+typedef struct dp_svf_config_f32 {
+  float sample_interval;      /* Ts, s, > 0 */
+  float filter_time_constant; /* tf, s, > 0 (about half the fast time constant) */
+  uint32_t order;             /* 1 or 2 */
+  float sigma1, sigma2;       /* white-noise std, K, >= 0 (GTLS; 0 and 0: TLS limit) */
+  float quantisation;         /* ADC step in K, >= 0: noise floor sigma^2 += step^2 / 12 */
+  float forgetting;           /* (0, 1]; 1 = none */
+  float flow_ref;             /* > 0: a flow channel (same unit); 0: no flow */
+  float exponent;             /* order 2 with flow: initial m for phi, in [0, 2] */
+  float max_eigenvalue_ratio; /* (0, 1]: solves less identifiable than this are refused */
+} dp_svf_config_f32;
+
+typedef struct dp_svf_result_f32 {
+  dp_status status; /* the other fields are meaningful only when DP_STATUS_OK */
+  uint32_t order;
+  float tau1[2]; /* s, at flow_ref, largest first (order 1: [1] = 0) */
+  float tau2[2];
+  float exponent;         /* m of tau = tau_ref (flow/flow_ref)^-m; 0 without flow */
+  float eigenvalue_ratio; /* smallest / second generalised eigenvalue (identifiability) */
+  float rows;             /* forgetting-weighted number of rows */
+} dp_svf_result_f32;
+
+/* The core's fixed-size Eigen members may need 16-byte alignment (SIMD on the host); the
+ * implementation checks it with a static_assert. */
+#if defined(__GNUC__) || defined(__clang__)
+#define DP_ALIGN16 __attribute__((aligned(16)))
+#else
+#define DP_ALIGN16
+#endif
+
+#define DP_SVF_INSTANCE_BYTES 1536
+typedef struct DP_ALIGN16 dp_svf_instance_f32 {
+  union {
+    uint32_t words[DP_SVF_INSTANCE_BYTES / 4];
+    float align_float;
+    void *align_pointer;
+    double align_double;
+  } storage;
+} dp_svf_instance_f32;
+
+/* Configures and clears; a bad configuration returns DP_STATUS_INVALID_ARGUMENT and leaves an
+ * unconfigured instance (update and solve then return DP_STATUS_INVALID_ARGUMENT). */
+dp_status dp_svf_init_f32(dp_svf_instance_f32 *instance, const dp_svf_config_f32 *config);
+void dp_svf_reset_f32(dp_svf_instance_f32 *instance);
+/* One sample pair (K) and the flow of this sample (ignored without a flow channel). Non-finite
+ * values: DP_STATUS_NON_FINITE_INPUT; flow <= 0: DP_STATUS_INVALID_ARGUMENT; either way the
+ * state is untouched. */
+dp_status dp_svf_update_f32(dp_svf_instance_f32 *instance, float t1, float t2, float flow);
+/* A gap in the samples (a sensor fault): the filter cascades join the next sample to the last
+ * one and the next ceil(25 tf / Ts) rows, while their transient decays, are not accumulated;
+ * the accumulated data (and so the estimate) survive. */
+void dp_svf_break_chain_f32(dp_svf_instance_f32 *instance);
+/* Solves (instance unchanged but for the order-2 phi exponent after an ok solve; see above).
+ * Never returns ok with a non-finite, non-positive or unidentifiable result. */
+dp_status dp_svf_solve_f32(dp_svf_instance_f32 *instance, dp_svf_result_f32 *result);
+/* psi = (flow/flow_ref)^m of a result (1 without flow or for a non-ok result). */
+float dp_svf_schedule_f32(const dp_svf_instance_f32 *instance, const dp_svf_result_f32 *result,
+                          float flow);
+
+/* ---- Causal Kalman reconstruction with GLR jump detection (kalman.hpp; issue 13) -----------
+ * Gas as a random walk of intensity q, each sensor a chain of 1 or 2 first-order stages whose
+ * time constants are tau_ref / psi(k): psi is given per sample (the flow schedule; 1 without
+ * flow). The transition of each interval is formed in float in closed form (one expf per
+ * stage, expm1f for a second stage); its process noise by the midpoint rule. */
+
+#define DP_KALMAN_MAX_WINDOW 24
+
+typedef struct dp_kalman_config_f32 {
+  float sample_interval; /* Ts, s, > 0 */
+  uint32_t order1, order2; /* stages per sensor, 1 or 2 */
+  float taus1[2], taus2[2]; /* s at psi = 1 (order 1: [1] unused) */
+  float sigma1, sigma2;   /* white-noise std, K, >= 0 */
+  float quantisation;     /* ADC step in K, >= 0: sigma^2 += step^2 / 12; the sum must be > 0 */
+  float intensity;        /* q, K^2/s, > 0 */
+  uint32_t window;        /* GLR candidates, 0 (no jump detection) .. DP_KALMAN_MAX_WINDOW */
+  float false_alarm;      /* (0, 1) per sample */
+} dp_kalman_config_f32;
+
+#define DP_KALMAN_INSTANCE_BYTES 2176
+typedef struct DP_ALIGN16 dp_kalman_instance_f32 {
+  union {
+    uint32_t words[DP_KALMAN_INSTANCE_BYTES / 4];
+    float align_float;
+    void *align_pointer;
+    double align_double;
+  } storage;
+} dp_kalman_instance_f32;
+
+dp_status dp_kalman_init_f32(dp_kalman_instance_f32 *instance, const dp_kalman_config_f32 *config);
+/* Back to before the first sample (the configuration stays). */
+void dp_kalman_reset_f32(dp_kalman_instance_f32 *instance);
+/* New time constants at psi = 1 (e.g. after an ok solve), keeping the state; orders must stay.
+ * Invalid: DP_STATUS_INVALID_ARGUMENT, untouched. */
+dp_status dp_kalman_retune_f32(dp_kalman_instance_f32 *instance, const float taus1[2],
+                               const float taus2[2]);
+/* T1(k), T2(k) and psi(k) > 0; on ok the filtered gas at t_k in *gas. Non-finite input:
+ * DP_STATUS_NON_FINITE_INPUT, psi <= 0: DP_STATUS_INVALID_ARGUMENT, state untouched. The
+ * first sample after init/reset starts the filter and is ok. */
+dp_status dp_kalman_update_f32(dp_kalman_instance_f32 *instance, float t1, float t2, float psi,
+                               float *gas);
+uint32_t dp_kalman_jumps_f32(const dp_kalman_instance_f32 *instance);
 
 #ifdef __cplusplus
 } /* extern "C" */

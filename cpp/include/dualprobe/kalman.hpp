@@ -132,6 +132,22 @@ class KalmanReconstructor {
     return Status::ok;
   }
 
+  // Flow schedule (design.md 1.5): the transition Phi and process noise of the interval that
+  // ends at the next update(), for dynamics that change from sample to sample (the caller
+  // discretises tau(t), e.g. per stage in closed form). Keeps the state, the covariance and the
+  // GLR candidates: every candidate's effect is propagated with the Phi of each interval it
+  // lives through, so its statistic is that of the time-varying model (unlike retune(), whose
+  // candidates were weighed with another model). Single-mode models only; unused entries
+  // beyond states() must be those of configure() (identity in Phi, zero in the noise).
+  // Not configured, hysteretic, or a non-finite entry: invalid_argument, untouched.
+  Status set_model(const Matrix& phi, const Matrix& process) noexcept {
+    if (!configured_ || layout_.modes != 1) return Status::invalid_argument;
+    if (!phi.allFinite() || !process.allFinite()) return Status::invalid_argument;
+    phi_[0] = phi;
+    process_[0] = process;
+    return Status::ok;
+  }
+
   // Back to the state before the first sample (the configuration stays).
   void reset() noexcept { clear_state(); }
 

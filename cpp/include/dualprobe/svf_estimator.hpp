@@ -293,6 +293,7 @@ class SvfEstimator {
     state_.basis.setZero();
     state_.basis[0] = Scalar(1);  // b(0) = e_0
     samples_ = 0;
+    hold_ = 0;
     head_ = 0;
     offset1_ = Scalar(0);
     offset2_ = Scalar(0);
@@ -318,7 +319,12 @@ class SvfEstimator {
       state_.u1 = u1;
       state_.u2 = u2;
       ++samples_;
-      accumulate(state_, unsplit_row(state_.v1, state_.v2), Extra::Ones(), OmegaRow::Zero());
+      if (hold_ > 0) {
+        --hold_;
+        skip_row(state_);
+      } else {
+        accumulate(state_, unsplit_row(state_.v1, state_.v2), Extra::Ones(), OmegaRow::Zero());
+      }
     }
     return Status::ok;
   }
@@ -363,7 +369,12 @@ class SvfEstimator {
       omega[0] = Scalar(1);
       if constexpr (Order == 2) omega[1] = phi;
       for (int j = 0; j < Basis; ++j) omega[omega_basis + j] = w[j];
-      accumulate(state_, scheduled_row(state_), offset_regressors(state_), omega);
+      if (hold_ > 0) {
+        --hold_;
+        skip_row(state_);
+      } else {
+        accumulate(state_, scheduled_row(state_), offset_regressors(state_), omega);
+      }
     }
     return Status::ok;
   }
@@ -374,6 +385,20 @@ class SvfEstimator {
     if (!std::isfinite(psi)) return Status::non_finite_input;
     const Scalar phi = psi > Scalar(0) ? Scalar(1) / psi : Scalar(1);  // psi <= 0 refused below
     return update(t1, t2, &psi, phi);
+  }
+
+  // A gap in the samples (e.g. a sensor fault; not for the hysteresis variant, where it does
+  // nothing): the next sample is joined to the last one before the gap by one interval, which
+  // puts a transient into the filter cascades (an input step of the change over the gap). The
+  // rows of the next `settle_rows` samples advance the cascades but are not accumulated: the
+  // transient decays as (t/tf)^m e^(-t/tf), so settle_rows = 25 tf/Ts leaves ~1e-8 of it. The
+  // accumulated moments, and so the estimate, survive the gap. The start-up transient basis
+  // keeps advancing with the skipped rows, so its projection stays aligned.
+  // At most 65535 rows (capped).
+  void break_chain(std::uint64_t settle_rows) noexcept {
+    if constexpr (!Hysteresis) {
+      hold_ = std::uint16_t(settle_rows < 65535u ? settle_rows : 65535u);
+    }
   }
 
   Result solve() const noexcept { return solve(moments(), offset1_, offset2_); }
@@ -847,6 +872,12 @@ class SvfEstimator {
     ++s.rows;
   }
 
+  // A row index that passes without a row (break_chain): the transient basis advances.
+  void skip_row(State& s) const noexcept {
+    if (s.rows < transient_rows_) foh_.propagate(s.basis);
+    ++s.rows;
+  }
+
   static AugmentedMatrix augmented(const State& s) noexcept {
     AugmentedMatrix out = s.block.matrix();
     int index = 0;
@@ -1121,8 +1152,14 @@ class SvfEstimator {
       out.status = Status::insufficient_excitation;
       return out;
     }
-    SolveMatrix whitened = llt.matrixL().solve(s_n);
-    whitened = llt.matrixL().solve(whitened.transpose()).eval();
+    // Column by column (as gtls.hpp): a matrix right-hand side instantiates Eigen's blocked
+    // triangular solver, which references malloc/free (the firmware's heap guard fails the
+    // link); vector solves do not.
+    SolveMatrix half;
+    for (int j = 0; j < columns; ++j) half.col(j) = llt.matrixL().solve(s_n.col(j));
+    const SolveMatrix half_t = half.transpose();
+    SolveMatrix whitened;
+    for (int j = 0; j < columns; ++j) whitened.col(j) = llt.matrixL().solve(half_t.col(j));
     const SolveMatrix symmetric = T(0.5) * (whitened + whitened.transpose());
     Eigen::SelfAdjointEigenSolver<SolveMatrix> eig(symmetric);
     if (eig.info() != Eigen::Success || !symmetric.allFinite()) {
@@ -1252,6 +1289,7 @@ class SvfEstimator {
   std::array<int, 2> window_{};
   int delay_{0};
   bool forgetting_{false};
+  std::uint16_t hold_{0};  // rows still to skip after break_chain() (in the padding)
 };
 
 // The variants the firmware and the bindings use.
