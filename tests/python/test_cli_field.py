@@ -64,3 +64,17 @@ def test_report_on_a_file_is_refused(drive_csv: tuple[Path, sim.FieldRecording],
     assert main(["characterise", str(path), "--report", str(blocker)]) == 2
     err = capsys.readouterr().err
     assert len(err.splitlines()) == 1 and "--report" in err
+
+
+def test_the_papers_method_is_checked_too(drive_csv: tuple[Path, sim.FieldRecording],
+                                          tmp_path: Path,
+                                          capsys: pytest.CaptureFixture[str]) -> None:
+    """--method gtls has no misfit statistic of its own: its reconstruction's residuals are
+    checked, so a constant-tau fit of flow-dependent sensors is not printed as "ok"."""
+    path, _ = drive_csv
+    doc_path = tmp_path / "g.json"
+    assert main(["characterise", str(path), "--method", "gtls", "--output",
+                 str(tmp_path / "g.csv"), "--json", str(doc_path)]) == 0
+    out = capsys.readouterr().out
+    assert ": ok" not in out and "warning:" in out
+    assert json.loads(doc_path.read_text())["model_check"]["adequate"] is False

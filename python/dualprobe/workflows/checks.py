@@ -52,12 +52,13 @@ class ModelCheck:
 
     def summary_lines(self) -> list[str]:
         if self.adequate:
-            text = f"model check: the model explains both signals (misfit " \
-                   f"{self.estimation_misfit:.3g} x the noise"
+            parts = []
+            if math.isfinite(self.estimation_misfit):
+                parts.append(f"misfit {self.estimation_misfit:.3g} x the noise")
             if self.misfit_to_noise:
-                text += ", residuals " + ", ".join(f"{m:.2g}" for m in self.misfit_to_noise)
-                text += " x each sensor's noise"
-            return [text + ")"]
+                parts.append("residuals " + ", ".join(f"{m:.2g}" for m in self.misfit_to_noise)
+                             + " x each sensor's noise")
+            return [f"model check: the model explains both signals ({', '.join(parts)})"]
         return [f"warning: {reason}" for reason in self.reasons]
 
 
