@@ -14,6 +14,7 @@ __all__ = [
     "DIRECTION_TOLERANCE",
     "GAP_THRESHOLD",
     "KAPPA",
+    "RECORD_FRACTION",
     "RESOLUTION_FLOOR",
     "choose_filter_time_constant",
     "discretisation_noise_std",
@@ -26,6 +27,7 @@ __all__ = [
 # records, 10-100 Hz, 0.01-0.1 K); distinct poles 0.17 s / 0.19 s at 100 Hz, 0.01 K gave
 # >= 160 (and were estimated to 2 %).
 GAP_THRESHOLD = 10.0
+RECORD_FRACTION = 1.0 / 3.0  # time constants longer than this share of the record: implausible
 KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
 RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std
 DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification

@@ -48,6 +48,7 @@ from dualprobe.estimation.settings import (
     DIRECTION_TOLERANCE,
     GAP_THRESHOLD,
     KAPPA,
+    RECORD_FRACTION,
     RESOLUTION_FLOOR,
     choose_filter_time_constant,
     discretisation_noise_std,
@@ -247,7 +248,8 @@ class _SvfRun:
         statistic = gain * math.sqrt(n_eff / 2.0)
         self.details["static_model_statistic"] = statistic
         duration = (self.t1.size - 1) * self.ts
-        if not self._plausible(unit, duration / 3.0) and self._plausible(affine, duration / 3.0):
+        limit = RECORD_FRACTION * duration
+        if not self._plausible(unit, limit) and self._plausible(affine, limit):
             # the affine model fits at least as well (it contains the unit one)
             self.details["static_model_reason"] = "the unit model's time constants are implausible"
             return affine, "affine"
@@ -288,8 +290,9 @@ class _SvfRun:
 
     @staticmethod
     def _plausible(fit: Fit, limit: float) -> bool:
-        """No time constant longer than ``limit``, a third of the record, beyond which the
-        result is refused (complex or negative ones are the order selection's business)."""
+        """No time constant longer than ``limit`` (``RECORD_FRACTION`` of the record,
+        beyond which the result is refused; complex or negative ones are the order
+        selection's business)."""
         taus = [t for sensor in fit.time_constants for t in sensor]
         return all(t < limit for t in taus if math.isfinite(t))
 

@@ -159,12 +159,13 @@ class Characterisation:
         if self.model_check is not None:
             document["model_check"] = self.model_check.to_json_dict()
         if self.gas_estimate is not None:
+            doubts = self.reconstruction_doubts()
             document["reconstruction"] = {
                 "mode": self.reconstruction_mode,
                 "rmse_vs_reference": self.rmse_vs_reference,
                 "reference_column": self.reference_column,
-                "reliable": not self.reconstruction_doubts(),
-                "doubts": self.reconstruction_doubts(),
+                "reliable": not doubts,
+                "doubts": doubts,
             }
         return jsonable(document)
 

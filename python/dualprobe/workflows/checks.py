@@ -23,12 +23,12 @@ from typing import Any
 import numpy as np
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
+from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
 
 __all__ = ["MISFIT_LIMIT", "ModelCheck", "check_model", "refuse_implausible"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
-RECORD_FRACTION = 1.0 / 3.0  # time constants longer than a third of the record are refused
 
 
 @dataclass(frozen=True)
