@@ -10,6 +10,8 @@ template class KalmanReconstructor<float, 3>;
 template class KalmanReconstructor<double, 3>;
 template class KalmanReconstructor<float, 6, 16>;
 template class KalmanReconstructor<double, 6, 16>;
+template class KalmanReconstructor<float, 5, 1, 16, 20>;  // the ECU's, with a fixed lag
+template class KalmanReconstructor<double, 5, 1, 16, 20>;
 template class SvfEstimator<float, 1>;
 template class SvfEstimator<double, 1>;
 template class SvfEstimator<float, 1, StaticModel::affine>;

@@ -16,6 +16,18 @@
 // a (2) and C (2 x 2, symmetric); a jump is applied when the best constrained statistic exceeds
 // chi2_2.isf(false_alarm / window) = -2 ln(false_alarm / window).
 //
+// Fixed lag (MaxLag > 0, config lag L): the gas at t_{k-L} given the samples up to t_k, for a
+// caller that can wait L samples (a logger, a diagnosis) -- near the offline smoother's accuracy
+// for an L of a fraction of the sensors' time constants. The state is augmented only by what the
+// mean and variance of the lagged gas need: per lagged instant its mean, variance and cross
+// covariance with x (a ring of L entries, 2 + n scalars each; no L x L block). Predict pushes the
+// filtered gas and ages the cross covariances (C <- C Phi^T); update applies the Kalman gain
+// C H^T S^-1 (as the GLR does to its candidates). Without jump detection only: a GLR jump's
+// effect on each lagged instant is not tracked (it would take window x lag more effects), and
+// shifting the lagged instants by the current gas's correction was measured to double-count
+// (a drive cycle's lagged RMSE 0.89 K with jumps against 0.44 K without). A caller wanting both
+// runs a second, jump-free instance for the lagged output (the C API does).
+//
 // Configuration (discretisation, floors, threshold) runs in double for both scalar types, once;
 // the per-sample recursion runs in Scalar. The filter works on the samples minus an offset (the
 // first sample pair's mean) so that a float state holds kelvins around zero, not around 300:
@@ -69,6 +81,7 @@ struct KalmanConfig {
   bool detect_jumps{true};
   int window{64};                   // GLR candidates kept (1 .. MaxWindow)
   Scalar false_alarm{Scalar(1e-6)};  // probability per sample of a spurious jump, (0, 1)
+  int lag{0};  // fixed-lag output: 0 (the filtered gas) .. MaxLag samples
 };
 
 template <typename Scalar>
@@ -79,7 +92,8 @@ struct KalmanJump {
   Scalar fraction{0};            // position within the interval, 0 = start, 1 = end
 };
 
-template <typename Scalar, int MaxStates = 6, int MaxModes = 1, int MaxWindow = 64>
+template <typename Scalar, int MaxStates = 6, int MaxModes = 1, int MaxWindow = 64,
+          int MaxLag = 0>
 class KalmanReconstructor {
  public:
   static_assert(std::is_floating_point<Scalar>::value, "Scalar must be float or double");
@@ -88,10 +102,12 @@ class KalmanReconstructor {
   static_assert(MaxModes >= 1 && MaxModes <= 16 && (MaxModes & (MaxModes - 1)) == 0,
                 "hysteresis modes: a power of two, at most 2^4");
   static_assert(MaxWindow >= 1 && MaxWindow <= 4096, "GLR window capacity");
+  static_assert(MaxLag >= 0 && MaxLag <= 4096, "fixed-lag capacity");
 
   static constexpr int max_states = MaxStates;
   static constexpr int max_modes = MaxModes;
   static constexpr int max_window = MaxWindow;
+  static constexpr int max_lag = MaxLag;
 
   using Config = KalmanConfig<Scalar>;
   using Jump = KalmanJump<Scalar>;
@@ -187,6 +203,7 @@ class KalmanReconstructor {
     Gain gain;
     gain.col(0) = p_.col(o1) * i00 + p_.col(o2) * i01;
     gain.col(1) = p_.col(o1) * i01 + p_.col(o2) * i11;
+    if constexpr (MaxLag > 0) lagged_update(gain, e0, e1, i00, i01, i11);
     x_ += gain.col(0) * e0 + gain.col(1) * e1;
     // Joseph form P = (I - K H) P (I - K H)^T + K R K^T, symmetric by construction.
     Matrix b = Matrix::Identity();
@@ -264,6 +281,26 @@ class KalmanReconstructor {
   std::uint32_t samples() const noexcept { return samples_; }
   Scalar gas() const noexcept { return x_[0] + offset_; }
   Scalar gas_variance() const noexcept { return p_(0, 0); }
+  int lag() const noexcept { return lag_; }
+  // The fixed-lag gas at t_{k-lag} given the samples up to t_k (k: the last update or skip) and
+  // its variance (>= 0); false (outputs untouched) until lag instants have passed since the
+  // start. lag 0: the filtered gas.
+  bool lagged(Scalar* gas, Scalar* variance) const noexcept {
+    if (!started_) return false;
+    Scalar mean = x_[0];
+    Scalar var = p_(0, 0);
+    if constexpr (MaxLag > 0) {
+      if (lag_ > 0) {
+        if (lag_count_ < lag_) return false;
+        const LagEntry& oldest = lagged_[lag_head_ + 1 == lag_ ? 0 : lag_head_ + 1];
+        mean = oldest.mean;
+        var = oldest.variance;
+      }
+    }
+    if (gas != nullptr) *gas = mean + offset_;
+    if (variance != nullptr) *variance = var > Scalar(0) ? var : Scalar(0);
+    return true;
+  }
   // State with the offset restored (levels in K; an irw slope in K/s), unused entries zero.
   Vector state() const noexcept {
     Vector out = x_;
@@ -301,6 +338,13 @@ class KalmanReconstructor {
     Scalar c11;
   };
 
+  // One lagged instant: its gas mean and variance and the cross covariance Cov(g, x).
+  struct LagEntry {
+    Scalar mean;
+    Scalar variance;
+    Scalar cross[MaxStates];
+  };
+
   struct Layout {
     int n{0};
     int gas_states{1};
@@ -334,6 +378,7 @@ class KalmanReconstructor {
     if (!positive_finite(c.sigma1) || !positive_finite(c.sigma2)) return false;
     if (!(c.intensity >= Scalar(0)) || !std::isfinite(c.intensity)) return false;
     if (c.window < 1 || c.window > MaxWindow) return false;
+    if (c.lag < 0 || c.lag > MaxLag || (c.lag > 0 && c.detect_jumps)) return false;
     if (!(c.false_alarm > Scalar(0)) || !(c.false_alarm < Scalar(1))) return false;
     Layout l;
     l.gas_states = c.gas == GasModel::integrated_random_walk ? 2 : 1;
@@ -431,6 +476,8 @@ class KalmanReconstructor {
   }
 
   void set_parameters(const Config& c) noexcept {
+    if (c.lag != lag_) lag_count_ = 0;  // another lag: the ring restarts
+    lag_ = c.lag;
     config_ = c;
     r1_ = c.sigma1 * c.sigma1;
     r2_ = c.sigma2 * c.sigma2;
@@ -456,6 +503,8 @@ class KalmanReconstructor {
     jumped_ = false;
     last_jump_ = Jump{};
     jump_count_ = 0;
+    lag_head_ = 0;
+    lag_count_ = 0;
   }
 
   Status diverged() noexcept {
@@ -502,6 +551,9 @@ class KalmanReconstructor {
   int predict() noexcept {
     const int m = MaxModes > 1 && layout_.modes > 1 ? mode_of(x_) : 0;
     const Matrix& phi = phi_[m];
+    if constexpr (MaxLag > 0) {
+      if (lag_ > 0) lagged_predict(phi);
+    }
     const Vector x = x_;
     x_ = phi.lazyProduct(x);
     const Matrix left = phi.lazyProduct(p_);
@@ -527,6 +579,53 @@ class KalmanReconstructor {
     fresh.c00 = fresh.c01 = fresh.c11 = Scalar(0);
     ++count_;
     return m;
+  }
+
+  // Pushes the filtered gas of the interval's start as the newest lagged instant (the oldest
+  // dropped when the ring is full), then ages every cross covariance: C <- C Phi^T.
+  void lagged_predict(const Matrix& phi) noexcept {
+    // Filling: slots 0, 1, ... in order; full: the oldest slot (after the newest) is reused.
+    if (lag_count_ < lag_) {
+      lag_head_ = lag_count_++;
+    } else {
+      lag_head_ = lag_head_ + 1 == lag_ ? 0 : lag_head_ + 1;
+    }
+    LagEntry& fresh = lagged_[lag_head_];
+    fresh.mean = x_[0];
+    fresh.variance = p_(0, 0);
+    for (int i = 0; i < MaxStates; ++i) fresh.cross[i] = p_(0, i);
+    for (int a = 0; a < lag_count_; ++a) {
+      Scalar* c = lagged_[a].cross;
+      Scalar aged[MaxStates];
+#pragma GCC unroll 6
+      for (int i = 0; i < MaxStates; ++i) {
+        Scalar s = c[0] * phi(i, 0);
+#pragma GCC unroll 6
+        for (int j = 1; j < MaxStates; ++j) s += c[j] * phi(i, j);
+        aged[i] = s;
+      }
+#pragma GCC unroll 6
+      for (int i = 0; i < MaxStates; ++i) c[i] = aged[i];
+    }
+  }
+
+  // The measurement update of every lagged instant, with rho = C H^T: mean += rho S^-1 e,
+  // variance -= rho S^-1 rho^T, C <- C - rho K^T (K from the prior covariance, as for x).
+  void lagged_update(const Gain& gain, Scalar e0, Scalar e1, Scalar i00, Scalar i01,
+                     Scalar i11) noexcept {
+    const int o1 = layout_.output1;
+    const int o2 = layout_.output2;
+    for (int a = 0; a < lag_count_; ++a) {
+      LagEntry& entry = lagged_[a];
+      const Scalar r0 = entry.cross[o1];
+      const Scalar r1 = entry.cross[o2];
+      const Scalar g0 = r0 * i00 + r1 * i01;
+      const Scalar g1 = r0 * i01 + r1 * i11;
+      entry.mean += g0 * e0 + g1 * e1;
+      entry.variance -= g0 * r0 + g1 * r1;
+#pragma GCC unroll 6
+      for (int i = 0; i < MaxStates; ++i) entry.cross[i] -= r0 * gain(i, 0) + r1 * gain(i, 1);
+    }
   }
 
   // M <- M Phi^T for one candidate (rows of M are contiguous: row-major storage).
@@ -704,6 +803,10 @@ class KalmanReconstructor {
   bool started_{false};
   bool jumped_{false};
   std::array<Candidate, MaxWindow> candidates_{};
+  std::array<LagEntry, MaxLag> lagged_{};
+  int lag_{0};
+  int lag_head_{0};   // ring index of the newest lagged instant (age 1)
+  int lag_count_{0};  // lagged instants held, <= lag_
 };
 
 // The configurations an ECU instantiates: a first-order pair with a random-walk gas (3
