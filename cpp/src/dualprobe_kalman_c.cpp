@@ -20,11 +20,19 @@ using namespace dualprobe::c_detail;
 // ---- Kalman ------------------------------------------------------------------------------
 
 constexpr int kWindow = DP_KALMAN_MAX_WINDOW;
+constexpr int kLag = DP_KALMAN_MAX_LAG;
 template <int N>
 using Kalman = dualprobe::KalmanReconstructor<float, N, 1, kWindow>;
+// The fixed-lag output runs on a second, jump-free filter (kalman.hpp: a GLR jump's effect on
+// the lagged instants is not tracked): same model, same samples, no GLR window (~30 % of the
+// causal filter's bytes, most of them the lag ring).
+template <int N>
+using Lagged = dualprobe::KalmanReconstructor<float, N, 1, 1, kLag>;
 
 struct RobustKalman {
   alignas(max_align<Kalman<3>, Kalman<5>>()) unsigned char core[max_size<Kalman<3>, Kalman<5>>()];
+  alignas(max_align<Lagged<3>, Lagged<5>>()) unsigned char lagged[max_size<Lagged<3>, Lagged<5>>()];
+  int lag{0};  // 0: no fixed-lag filter
   float ts{1};
   float taus[2][2]{};
   float variance[2]{};
@@ -39,6 +47,14 @@ struct RobustKalman {
   template <int N>
   const Kalman<N>* as() const noexcept {
     return std::launder(reinterpret_cast<const Kalman<N>*>(core));
+  }
+  template <int N>
+  Lagged<N>* lag_filter() noexcept {
+    return std::launder(reinterpret_cast<Lagged<N>*>(lagged));
+  }
+  template <int N>
+  const Lagged<N>* lag_filter() const noexcept {
+    return std::launder(reinterpret_cast<const Lagged<N>*>(lagged));
   }
 };
 
@@ -133,6 +149,10 @@ dp_status kalman_update(RobustKalman* k, float t1, float t2, float psi, float* g
   float out = 0.0f;
   const dualprobe::Status status = core->update(t1, t2, &out);
   if (status != dualprobe::Status::ok) return static_cast<dp_status>(status);
+  if (k->lag > 0) {  // a failed lagged update restarts that filter only (not ready for a while)
+    Lagged<N>* lagged = k->lag_filter<N>();
+    if (lagged->set_model(phi, process) == dualprobe::Status::ok) (void)lagged->update(t1, t2);
+  }
   *gas = out;
   return DP_STATUS_OK;
 }
@@ -159,7 +179,8 @@ dp_status dp_kalman_init_f32(dp_kalman_instance_f32* instance, const dp_kalman_c
   const float floor = config->quantisation * config->quantisation / 12.0f;
   if (!(config->quantisation >= 0.0f) || !std::isfinite(config->quantisation) ||
       !(config->sigma1 >= 0.0f) || !(config->sigma2 >= 0.0f) ||
-      !finite_positive(config->intensity) || config->window > uint32_t(kWindow)) {
+      !finite_positive(config->intensity) || config->window > uint32_t(kWindow) ||
+      config->lag > uint32_t(kLag)) {
     return DP_STATUS_INVALID_ARGUMENT;
   }
   dualprobe::KalmanConfig<float> core;
@@ -178,6 +199,15 @@ dp_status dp_kalman_init_f32(dp_kalman_instance_f32* instance, const dp_kalman_c
   const dualprobe::Status status = states == 3 ? (new (k->core) Kalman<3>())->configure(core)
                                                : (new (k->core) Kalman<5>())->configure(core);
   if (status != dualprobe::Status::ok) return DP_STATUS_INVALID_ARGUMENT;
+  if (config->lag > 0u) {
+    core.detect_jumps = false;
+    core.window = 1;
+    core.lag = int(config->lag);
+    const dualprobe::Status lagged = states == 3
+                                         ? (new (k->lagged) Lagged<3>())->configure(core)
+                                         : (new (k->lagged) Lagged<5>())->configure(core);
+    if (lagged != dualprobe::Status::ok) return DP_STATUS_INVALID_ARGUMENT;
+  }
   k->ts = config->sample_interval;
   for (int j = 0; j < 2; ++j) {
     k->taus[0][j] = core.taus1[j];
@@ -188,6 +218,7 @@ dp_status dp_kalman_init_f32(dp_kalman_instance_f32* instance, const dp_kalman_c
   k->intensity = config->intensity;
   k->order[0] = int(o1);
   k->order[1] = int(o2);
+  k->lag = int(config->lag);
   k->states = states;
   return DP_STATUS_OK;
 }
@@ -197,6 +228,8 @@ void dp_kalman_reset_f32(dp_kalman_instance_f32* instance) {
   RobustKalman* k = kalman(instance);
   if (k->states == 3) k->as<3>()->reset();
   if (k->states == 5) k->as<5>()->reset();
+  if (k->lag > 0 && k->states == 3) k->lag_filter<3>()->reset();
+  if (k->lag > 0 && k->states == 5) k->lag_filter<5>()->reset();
 }
 
 dp_status dp_kalman_retune_f32(dp_kalman_instance_f32* instance, const float taus1[2],
@@ -232,6 +265,20 @@ uint32_t dp_kalman_jumps_f32(const dp_kalman_instance_f32* instance) {
   if (k->states == 3) return k->as<3>()->jump_count();
   if (k->states == 5) return k->as<5>()->jump_count();
   return 0u;
+}
+
+dp_status dp_kalman_lagged_f32(const dp_kalman_instance_f32* instance, float* gas, float* std) {
+  if (instance == nullptr) return DP_STATUS_INVALID_ARGUMENT;
+  const RobustKalman* k = kalman(instance);
+  float mean = 0.0f;
+  float variance = 0.0f;
+  bool ready = false;
+  if (k->lag > 0 && k->states == 3) ready = k->lag_filter<3>()->lagged(&mean, &variance);
+  if (k->lag > 0 && k->states == 5) ready = k->lag_filter<5>()->lagged(&mean, &variance);
+  if (!ready) return DP_STATUS_NOT_READY;
+  if (gas != nullptr) *gas = mean;
+  if (std != nullptr) *std = std::sqrt(variance);
+  return DP_STATUS_OK;
 }
 
 }  // extern "C"

@@ -230,7 +230,11 @@ float dp_svf_schedule_f32(const dp_svf_instance_f32 *instance, const dp_svf_resu
  * flow). The transition of each interval is formed in float in closed form (one expf per
  * stage, expm1f for a second stage); its process noise by the midpoint rule. */
 
-#define DP_KALMAN_MAX_WINDOW 24
+#define DP_KALMAN_MAX_WINDOW 8
+/* Fixed-lag output (dp_kalman_lagged_f32): the gas at t_{k-lag} from the samples up to t_k,
+ * near the offline smoother's accuracy for a lag of a tenth of the faster sensor's time
+ * constant. 28 bytes of state per lag sample, inside the instance. */
+#define DP_KALMAN_MAX_LAG 20
 
 typedef struct dp_kalman_config_f32 {
   float sample_interval; /* Ts, s, > 0 */
@@ -241,9 +245,10 @@ typedef struct dp_kalman_config_f32 {
   float intensity;        /* q, K^2/s, > 0 */
   uint32_t window;        /* GLR candidates, 0 (no jump detection) .. DP_KALMAN_MAX_WINDOW */
   float false_alarm;      /* (0, 1) per sample */
+  uint32_t lag;           /* fixed-lag output, samples: 0 (none) .. DP_KALMAN_MAX_LAG */
 } dp_kalman_config_f32;
 
-#define DP_KALMAN_INSTANCE_BYTES 2176
+#define DP_KALMAN_INSTANCE_BYTES 2400
 typedef struct DP_ALIGN16 dp_kalman_instance_f32 {
   union {
     uint32_t words[DP_KALMAN_INSTANCE_BYTES / 4];
@@ -266,6 +271,10 @@ dp_status dp_kalman_retune_f32(dp_kalman_instance_f32 *instance, const float tau
 dp_status dp_kalman_update_f32(dp_kalman_instance_f32 *instance, float t1, float t2, float psi,
                                float *gas);
 uint32_t dp_kalman_jumps_f32(const dp_kalman_instance_f32 *instance);
+/* After an ok update at t_k: the gas at t_{k-lag} given the samples up to t_k in *gas and its
+ * standard deviation in *std (K; either may be NULL). DP_STATUS_NOT_READY until lag samples
+ * have passed since the start (or a reset), or with lag 0; nothing written then. */
+dp_status dp_kalman_lagged_f32(const dp_kalman_instance_f32 *instance, float *gas, float *std);
 
 #ifdef __cplusplus
 } /* extern "C" */
