@@ -57,6 +57,7 @@ int firmware_parse_header2(const uint8_t extra[FIRMWARE_HEADER2_EXTRA_BYTES],
   config->false_alarm = read_f32(extra + 36);
   config->tau_min = read_f32(extra + 40);
   config->tau_max = read_f32(extra + 44);
+  config->lag = read_u32(extra + 48);
   if (!(config->tau_min >= 0.0f) || !(config->tau_max > config->tau_min)) return -5;
   return 0;
 }
@@ -127,6 +128,7 @@ void firmware_tick(firmware_state *state, uint32_t counts1, uint32_t counts2, ti
   out->published = 0u;
 
   out->gas = quiet_nan();
+  out->gas_lagged = quiet_nan();
   if (flags != 0u) {
     /* Fault: stop feeding both the estimator and the reconstruction; the next healthy sample
      * must not be differenced against the last one before the fault. */
@@ -220,7 +222,7 @@ static firmware_state g_state;
 static text_buffer g_out;
 
 static void emit(text_buffer *buffer, const tick_output *out) {
-  /* T <tick> <flags> <t1> <t2> <gas> */
+  /* T <tick> <flags> <t1> <t2> <gas> [<gas at tick - lag>: the SVF loop] */
   put_char(buffer, 'T');
   put_char(buffer, ' ');
   put_dec(buffer, out->tick);
@@ -229,6 +231,7 @@ static void emit(text_buffer *buffer, const tick_output *out) {
   put_float(buffer, out->t1);
   put_float(buffer, out->t2);
   put_float(buffer, out->gas);
+  if (g_state.config.estimator == ESTIMATOR_SVF) put_float(buffer, out->gas_lagged);
   put_char(buffer, '\n');
   if ((out->flags & FLAG_SOLVED) && g_state.config.estimator == ESTIMATOR_SVF) {
     /* R <tick> <status> <published> <tau1a> <tau1b> <tau2a> <tau2b> <exponent> <ratio> */

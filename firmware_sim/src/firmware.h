@@ -16,13 +16,14 @@
 #include "dualprobe/dualprobe.h"
 
 /* Calibration block of the input stream, little-endian (see README): version 1 is 56 bytes
- * and two uint32 counts per tick; version 2 appends 48 bytes (the robust estimator and the
- * Kalman reconstruction) and carries a third word per tick, the exhaust flow (float bits). */
+ * and two uint32 counts per tick; version 2 appends 52 bytes (the robust estimator and the
+ * Kalman reconstruction, its fixed lag last) and carries a third word per tick, the exhaust
+ * flow (float bits). */
 #define FIRMWARE_MAGIC 0x57465044ul /* "DPFW" */
 #define FIRMWARE_VERSION 1u
 #define FIRMWARE_VERSION_ROBUST 2u
 #define FIRMWARE_HEADER_BYTES 56u
-#define FIRMWARE_HEADER2_EXTRA_BYTES 48u
+#define FIRMWARE_HEADER2_EXTRA_BYTES 52u
 
 typedef enum firmware_estimator {
   ESTIMATOR_DIFFERENCE = 0, /* the paper's difference estimator + exact inverse (version 1) */
@@ -53,6 +54,7 @@ typedef struct firmware_config {
   uint32_t window;            /* GLR candidates, 0 = no jump detection */
   float false_alarm;          /* GLR false-alarm probability per sample */
   float tau_min, tau_max;     /* s: plausible time constants; a solve outside is not published */
+  uint32_t lag;               /* ticks of the fixed-lag output, 0 (none) .. DP_KALMAN_MAX_LAG */
 } firmware_config;
 
 /* Tick flags. */
@@ -83,13 +85,14 @@ typedef struct tick_output {
   uint32_t flags;
   float t1, t2;  /* C; NaN for a faulted channel */
   float gas;     /* C; NaN unless FLAG_GAS_VALID */
+  float gas_lagged; /* C: the gas of tick - lag (fixed lag, version 2); NaN when not ready */
   dp_diff_result_f32 result; /* valid with FLAG_SOLVED (difference estimator) */
   dp_svf_result_f32 robust;  /* valid with FLAG_SOLVED (SVF estimator) */
   uint8_t published;         /* the SVF solve passed every check and retuned the Kalman */
 } tick_output;
 
 /* Parses and validates the 56-byte calibration block; returns 0 or a negative error. A
- * version-2 block returns 0 with config->version = 2: the caller then reads the 48 further
+ * version-2 block returns 0 with config->version = 2: the caller then reads the 52 further
  * bytes with firmware_parse_header2. */
 int firmware_parse_header(const uint8_t header[FIRMWARE_HEADER_BYTES], firmware_config *config);
 int firmware_parse_header2(const uint8_t extra[FIRMWARE_HEADER2_EXTRA_BYTES],

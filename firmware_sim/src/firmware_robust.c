@@ -1,7 +1,8 @@
 /* The noise-robust loop (issue 13): ADC counts -> Callendar-Van Dusen -> open/short detection
  * -> SVF cross-relation estimator every healthy tick (with the flow channel when configured)
  * -> a solve every solve_every ticks -> the causal Kalman reconstruction every healthy tick,
- * scheduled with psi = (flow/flow_ref)^m of the last published solve.
+ * scheduled with psi = (flow/flow_ref)^m of the last published solve, and its fixed-lag output
+ * (the gas of `lag` ticks ago from the samples up to now) when lag > 0.
  *
  * A solve is published (Kalman retuned, FLAG_TAUS_VALID) only when it is ok, identifiable
  * (eigenvalue-ratio gate in the C API) and plausible (every time constant within
@@ -46,6 +47,7 @@ dp_status firmware_robust_init(firmware_state *state) {
   kalman.intensity = c->intensity;
   kalman.window = c->window;
   kalman.false_alarm = c->false_alarm;
+  kalman.lag = c->lag;
   status = dp_kalman_init_f32(&state->kalman, &kalman);
   if (status != DP_STATUS_OK) return status;
   memset(&state->good, 0, sizeof state->good);
@@ -70,6 +72,7 @@ void firmware_robust_tick(firmware_state *state, uint32_t counts1, uint32_t coun
   float t2;
   uint32_t flags = firmware_read_channels(counts1, counts2, &t1, &t2);
   out->gas = firmware_nan();
+  out->gas_lagged = firmware_nan();
   out->published = 0u;
   if (flags != 0u) {
     if (!state->paused) {
@@ -94,6 +97,10 @@ void firmware_robust_tick(firmware_state *state, uint32_t counts1, uint32_t coun
       if (dp_kalman_update_f32(&state->kalman, t1, t2, psi, &gas) == DP_STATUS_OK) {
         out->gas = gas;
         flags |= FLAG_GAS_VALID;
+        float lagged = 0.0f;
+        if (dp_kalman_lagged_f32(&state->kalman, &lagged, NULL) == DP_STATUS_OK) {
+          out->gas_lagged = lagged;
+        }
       }
     }
   } else {

@@ -2,7 +2,7 @@
 
 Input (little-endian): a 56-byte calibration block, then one (counts1, counts2) uint32 pair per
 tick from the two Pt-100 ADC channels. Output: one text line per tick, ``T tick flags t1 t2
-gas``, plus ``S tick status beta b1 b2 tau1 tau2 ratio`` after each solve, every float as the
+gas`` (version 2: ``... gas lagged``, the fixed-lag gas of tick - lag), plus ``S tick status beta b1 b2 tau1 tau2 ratio`` after each solve, every float as the
 8 hex digits of its IEEE-754 bits (exact, and identical on every target). See README.md.
 """
 
@@ -19,7 +19,7 @@ MAGIC = b"DPFW"
 VERSION = 1
 HEADER = struct.Struct("<4sIIfIfffIIIfff")
 VERSION_ROBUST = 2
-HEADER2 = struct.Struct("<IIffffffIfff")  # appended by version 2 (firmware.h)
+HEADER2 = struct.Struct("<IIffffffIfffI")  # appended by version 2 (firmware.h)
 ESTIMATORS = {"difference": 0, "svf": 1}
 METHODS = {"ls": 0, "tls": 1, "gtls": 2}
 SOURCES = {"sensor1": 0, "sensor2": 1, "weighted": 2}
@@ -73,10 +73,11 @@ class Robust:
     exponent: float = 0.5
     max_eigenvalue_ratio: float = 0.1
     intensity: float = 1.0
-    window: int = 16
+    window: int = 8
     false_alarm: float = 1e-6
     tau_min: float = 0.01
     tau_max: float = 100.0
+    lag: int = 0  # ticks of the fixed-lag output (0: none)
 
 
 def ohm_to_counts(resistance_ohm: np.ndarray) -> np.ndarray:
@@ -127,7 +128,7 @@ def write_stream2(
     ) + HEADER2.pack(
         ESTIMATORS[rob.estimator], rob.order, rob.filter_time_constant, rob.quantisation,
         rob.flow_ref, rob.exponent, rob.max_eigenvalue_ratio, rob.intensity, rob.window,
-        rob.false_alarm, rob.tau_min, rob.tau_max,
+        rob.false_alarm, rob.tau_min, rob.tau_max, rob.lag,
     )
     rows = np.empty((c1.size, 3), dtype="<u4")
     rows[:, 0] = c1
@@ -144,6 +145,7 @@ class FirmwareOutput:
     t1: np.ndarray  # float32 degC, NaN when faulted
     t2: np.ndarray
     gas: np.ndarray  # float32 degC, NaN unless FLAG_GAS_VALID
+    gas_lagged: np.ndarray  # float32 degC: the gas of tick - lag; NaN when not ready or absent
     solve_ticks: np.ndarray  # tick index of each solve
     solve_status: np.ndarray  # dualprobe status code of each solve
     solve_values: np.ndarray  # float32 (n_solves, 6): beta, b1, b2, tau1, tau2, ratio
@@ -166,8 +168,9 @@ def parse_output(text: str) -> FirmwareOutput:
     published: list[int] = []
     for number, line in enumerate(text.splitlines(), start=1):
         words = line.split()
-        if len(words) == 6 and words[0] == "T":
-            ticks.append((int(words[1]), int(words[2], 16), words[3:]))
+        if len(words) in (6, 7) and words[0] == "T":
+            floats = words[3:] if len(words) == 7 else [*words[3:], "7fc00000"]
+            ticks.append((int(words[1]), int(words[2], 16), floats))
         elif len(words) == 9 and words[0] == "S":
             solves.append((int(words[1]), int(words[2]), words[3:]))
         elif len(words) == 10 and words[0] == "R":
@@ -177,13 +180,14 @@ def parse_output(text: str) -> FirmwareOutput:
             raise ValueError(f"firmware output line {number} is malformed: {line[:60]!r}")
     if [t[0] for t in ticks] != list(range(len(ticks))):
         raise ValueError("firmware output: tick numbers are not 0, 1, 2, ...")
-    tick_floats = _floats([w for t in ticks for w in t[2]]).reshape(-1, 3)
+    tick_floats = _floats([w for t in ticks for w in t[2]]).reshape(-1, 4)
     solve_floats = _floats([w for s in solves for w in s[2]]).reshape(-1, 6)
     return FirmwareOutput(
         flags=np.array([t[1] for t in ticks], dtype=np.uint32),
         t1=tick_floats[:, 0],
         t2=tick_floats[:, 1],
         gas=tick_floats[:, 2],
+        gas_lagged=tick_floats[:, 3],
         solve_ticks=np.array([s[0] for s in solves], dtype=np.int64),
         solve_status=np.array([s[1] for s in solves], dtype=np.int64),
         solve_values=solve_floats,
@@ -203,6 +207,7 @@ def compare_outputs(host: FirmwareOutput, target: FirmwareOutput, rtol: float) -
     worst = 0.0
     for name, a, b in (("t1", host.t1, target.t1), ("t2", host.t2, target.t2),
                        ("gas", host.gas, target.gas),
+                       ("gas_lagged", host.gas_lagged, target.gas_lagged),
                        ("solve", host.solve_values, target.solve_values)):
         a64 = a.astype(np.float64)
         b64 = b.astype(np.float64)

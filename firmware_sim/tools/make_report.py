@@ -38,7 +38,11 @@ ROBUST_BUDGETS = {
     "tick_instructions_max": 20000,
     "solve_instructions_max": 50000,
 }
-DRIVE_CYCLE_BOUNDS = {"tau_error_max": 0.05, "reconstruction_ratio": 0.25}
+DRIVE_CYCLE_BOUNDS = {"tau_error_max": 0.05, "reconstruction_ratio": 0.25,
+                      # issue 13's "within 2x of the offline smoother": met by the fixed-lag
+                      # output; the causal output's ratio is reported, not gated (no causal
+                      # filter reaches it on this cycle: firmware_sim/README.md)
+                      "fixed_lag_over_smoother": 2.0}
 # Small excitation: what a published solve may be off by (a diverged estimate is off by far
 # more); the scenario's accurate solves are within 0.5 %, so 10 % is no tolerance for noise.
 SMALL_EXCITATION_TAU_BOUND = 0.10
@@ -245,6 +249,10 @@ def robust_section(args, sizes: dict[str, int], comparisons: dict[str, object]):
                 metrics["reconstruction_ratio"] is not None
                 and metrics["reconstruction_ratio"] <= DRIVE_CYCLE_BOUNDS["reconstruction_ratio"])
             ok["drive_cycle.qemu_matches_host"] = matches
+            fixed = metrics.get("fixed_lag") or {}
+            ok["drive_cycle.fixed_lag_over_smoother"] = (
+                fixed.get("over_smoother") is not None
+                and fixed["over_smoother"] <= DRIVE_CYCLE_BOUNDS["fixed_lag_over_smoother"])
         elif name == "small_excitation":
             section["small_excitation"] = small_excitation_check(qemu, truth)
             section["small_excitation"]["qemu_matches_host"] = matches

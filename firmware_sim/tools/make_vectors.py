@@ -40,7 +40,7 @@ def main(argv: list[str] | None = None) -> int:
         # The truth for the report (never read by the firmware).
         np.savez(args.output.with_suffix(".truth.npz"), gas=sc.gas, taus1=np.array(sc.taus1),
                  taus2=np.array(sc.taus2), t1_clean=sc.t1_clean, t2_clean=sc.t2_clean,
-                 intensity=sc.robust.intensity, sigma1=sc.calibration.sigma1,
+                 intensity=sc.robust.intensity, lag=sc.robust.lag, flow=sc.flow, sigma1=sc.calibration.sigma1,
                  sigma2=sc.calibration.sigma2, ts=sc.calibration.sample_interval,
                  true_taus1=sc.true_taus1 if sc.true_taus1 is not None else np.zeros(0),
                  true_taus2=sc.true_taus2 if sc.true_taus2 is not None else np.zeros(0),

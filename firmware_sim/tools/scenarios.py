@@ -116,6 +116,11 @@ def _inject(counts1, counts2, faults):
         target[first:end] = COUNTS_OPEN if kind == "open" else COUNTS_SHORT
 
 
+# The fixed-lag output of the drive cycle: 0.2 s, a sixth of the faster element's time constant
+# at the reference flow (the largest lag the C API holds, DP_KALMAN_MAX_LAG).
+DRIVE_CYCLE_LAG = 20
+
+
 def drive_cycle_100hz(*, seed: int = 3, duration: float = 300.0, order: int = 2,
                       faults: list[tuple[int, str, int, int]] | None = None) -> RobustScenario:
     """The drive cycle of dualprobe.simulate.drive_cycle seen at 100 Hz by a pair of sheathed
@@ -143,7 +148,7 @@ def drive_cycle_100hz(*, seed: int = 3, duration: float = 300.0, order: int = 2,
                               solve_every=500, resume_after=10)
     robust = Robust(order=order, filter_time_constant=0.6, quantisation=6e-5, flow_ref=20.0,
                     exponent=0.5, max_eigenvalue_ratio=0.1, intensity=intensity, window=8,
-                    tau_min=0.02, tau_max=30.0)
+                    tau_min=0.02, tau_max=30.0, lag=DRIVE_CYCLE_LAG)
     taus1 = (1.2, 0.15) if order == 2 else (1.35,)
     taus2 = (3.0, 0.3) if order == 2 else (3.3,)
     return RobustScenario("drive_cycle", calibration, robust, counts1, counts2, flow, gas,
