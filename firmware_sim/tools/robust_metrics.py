@@ -17,6 +17,9 @@ the scenario's truth (``*.truth.npz`` written by make_vectors.py).
   --flow`` (the command an engineer runs on a logged cycle: identification, flow law and
   intensity from the data alone) on the firmware's CVD readings and flow channel.
   ``causal_over_smoother`` and ``fixed_lag.over_smoother`` divide by the better of the two.
+* ``causal_bound``: the RMSE no causal estimator can beat on this cycle (tools/causal_bound.py:
+  the MMSE filter of a genie that knows the models and the gas's slow part), and its ratio to
+  the better smoother: above 2, issue 13's "causal within 2x" cannot be met by any method.
 """
 
 from __future__ import annotations
@@ -134,6 +137,19 @@ def offline_smoother(out: FirmwareOutput, flow: np.ndarray) -> np.ndarray | None
         return np.loadtxt(result, delimiter=",", skiprows=1, usecols=1) - 273.15
 
 
+def genie_bound(truth: dict, valid: np.ndarray, smoother: float) -> dict | None:
+    try:
+        from dualprobe import simulate
+    except ImportError:
+        return None
+    import causal_bound
+
+    var_f, var_s = causal_bound.causal_bound(truth, simulate)
+    bound = float(np.sqrt(np.mean(var_f[valid])))
+    return {"rmse": bound, "genie_smoother_rmse": float(np.sqrt(np.mean(var_s[valid]))),
+            "over_smoother": bound / smoother}
+
+
 def fixed_lag_metrics(out: FirmwareOutput, gas: np.ndarray, smoothers: list[np.ndarray],
                       lag: int, ts: float) -> dict:
     ticks = np.flatnonzero(np.isfinite(out.gas_lagged))
@@ -185,6 +201,7 @@ def drive_cycle_metrics(out: FirmwareOutput, truth: dict, *, smoother: bool = Tr
                     result["offline_smoother_rmse"] = rmse(product[valid], gas[valid])
             best = min(rmse(s[valid], gas[valid]) for s in smoothers)
             result["causal_over_smoother"] = recon / best
+            result["causal_bound"] = genie_bound(truth, valid, best)
             lag = int(truth.get("lag", 0))
             if lag > 0:
                 result["fixed_lag"] = fixed_lag_metrics(out, gas, smoothers, lag,
