@@ -9,9 +9,12 @@ reconstructed, each sensor's residual against the smoother's model: its RMS in u
 sensor's noise (``MISFIT_LIMIT``: above 2 the residual is structured, not noise).
 
 Implausible results are refused (exit 3) with what and why, in terms a test engineer can act
-on: a time constant longer than a third of the record (the record cannot determine it), or a
-reconstruction that predicts a sensor worse than the other sensor's raw reading does (the model
-is worse than no model).
+on: a time constant longer than a third of the record (the record cannot determine it), a
+dominant time constant whose standard uncertainty exceeds its value while the model misfits (no
+number at all: a wrong model fitted to what it cannot explain; seen on a gain-mismatched,
+sheathed pair whose time constants follow the flow, characterised without the flow: 207 +/- 332
+s and a reconstruction 2,500 K off), or a reconstruction that predicts a sensor worse than the
+other sensor's raw reading does (the model is worse than no model).
 """
 
 from __future__ import annotations
@@ -62,15 +65,22 @@ class ModelCheck:
         return [f"warning: {reason}" for reason in self.reasons]
 
 
+def _misfit(estimate: PairEstimate) -> tuple[float, float]:
+    """The estimation's misfit (1: the noise) and its excess in noise-only standard
+    deviations (NaN when the method has no such statistic)."""
+    details = estimate.details
+    mu = float(details.get("residual_to_noise", math.nan))  # type: ignore[arg-type]
+    n_eff = float(details.get("effective_samples", math.nan))  # type: ignore[arg-type]
+    statistic = (mu - 1.0) * math.sqrt(n_eff / 2.0) if math.isfinite(mu * n_eff) else math.nan
+    return mu, statistic
+
+
 def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,
                 sigma: tuple[float, float] | None) -> ModelCheck:
     """The model check (module docstring). ``residuals``: each sensor's reading minus what
     the reconstruction predicts for it (None without a reconstruction); ``sigma``: the noise
     levels they are compared with."""
-    details = estimate.details
-    mu = float(details.get("residual_to_noise", math.nan))  # type: ignore[arg-type]
-    n_eff = float(details.get("effective_samples", math.nan))  # type: ignore[arg-type]
-    statistic = (mu - 1.0) * math.sqrt(n_eff / 2.0) if math.isfinite(mu * n_eff) else math.nan
+    mu, statistic = _misfit(estimate)
     reasons = []
     if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
         reasons.append(
@@ -103,6 +113,20 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 f"({duration:.4g} s): the record cannot determine it; record longer, or with "
                 "larger and faster temperature changes"
                 + (" (or use --order 1)" if len(taus) > 1 else ""))
+    mu, statistic = _misfit(estimate)
+    confidence = estimate.confidence
+    if confidence is not None and math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+        for i, column in enumerate(columns):
+            name = f"tau{i + 1}_0"  # the dominant time constant
+            value = confidence.values.get(name, math.nan)
+            std = confidence.std.get(name, math.nan)
+            if std > abs(value):  # not even its sign is determined: no number at all
+                raise EstimationError(
+                    f"{column}: time constant {value:.3g} +/- {std:.2g} s: the data do not "
+                    f"determine it and the model does not explain the signals (misfit {mu:.3g} "
+                    "x the noise); the time constants may follow the gas flow (give --flow), "
+                    "or the sensors differ in a way the model lacks (try --order 1, or "
+                    "dualprobe diagnose)")
     if residuals is None:
         return
     spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
