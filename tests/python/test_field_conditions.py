@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from dualprobe import simulate as sim
-from dualprobe.io import InputError
+from dualprobe.io import EstimationError, InputError
 from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle
 
@@ -109,6 +109,16 @@ def test_without_flow_tracking_stays_within_2_5x_the_oracle() -> None:
     ours = _rmse(result.gas_estimate, rec.tg)
     best = _oracle_rmse(rec, case)
     assert ours <= 2.5 * best, (ours, best)
+
+
+def test_without_flow_an_unexplained_pair_is_refused_not_absurd() -> None:
+    """Gain-mismatched sheathed sensors that follow the flow, characterised without it: no model
+    the tracker has explains them. The result is refused (exit 3) with what would help, never a
+    number the data do not determine (it was 207 +/- 332 s and a reconstruction 2,500 K off the
+    gas, exit 0)."""
+    rec = _record(CASES[2])
+    with pytest.raises(EstimationError, match="give --flow|longer than a third of the record"):
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
 
 
 def test_flow_without_flow_dependence_reports_constant() -> None:
