@@ -98,7 +98,7 @@ asan-test: setup
 # ruff; the import contracts of pyproject.toml (layers, the reference is a check, no cycles);
 # the checked-in _core.pyi against the built extension.
 lint: setup
-	$(VENV)/bin/ruff check python tests/python scripts
+	$(VENV)/bin/ruff check python tests/python scripts firmware_sim/tools
 	$(VENV)/bin/lint-imports
 	$(VPY) scripts/stubs.py --check
 

@@ -2,8 +2,9 @@
 
 Input (little-endian): a 56-byte calibration block, then one (counts1, counts2) uint32 pair per
 tick from the two Pt-100 ADC channels. Output: one text line per tick, ``T tick flags t1 t2
-gas`` (version 2: ``... gas lagged``, the fixed-lag gas of tick - lag), plus ``S tick status beta b1 b2 tau1 tau2 ratio`` after each solve, every float as the
-8 hex digits of its IEEE-754 bits (exact, and identical on every target). See README.md.
+gas`` (version 2: ``... gas lagged``, the fixed-lag gas of tick - lag), plus ``S tick status
+beta b1 b2 tau1 tau2 ratio`` after each solve, every float as the 8 hex digits of its IEEE-754
+bits (exact, and identical on every target). See README.md.
 """
 
 from __future__ import annotations

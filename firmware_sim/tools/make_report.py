@@ -19,8 +19,15 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from fwstream import (FAULT_FLAGS, FLAG_CH1_OPEN, FLAG_CH2_SHORT, FLAG_GAS_VALID, FLAG_PAUSED,
-                      compare_outputs, parse_output)
+from fwstream import (
+    FAULT_FLAGS,
+    FLAG_CH1_OPEN,
+    FLAG_CH2_SHORT,
+    FLAG_GAS_VALID,
+    FLAG_PAUSED,
+    compare_outputs,
+    parse_output,
+)
 
 RAM_ORIGIN = 0x20000000  # arm/mcu.ld
 # Host and M4F share every arithmetic operation (IEEE single, no FMA contraction); only libm's
@@ -269,7 +276,7 @@ def small_excitation_check(out, truth) -> dict[str, object]:
     SMALL_EXCITATION_TAU_BOUND of the truth."""
     ts = float(truth["ts"])
     published = out.solve_published.astype(bool)
-    quiet = out.solve_ticks < int(round(30.0 / ts))
+    quiet = out.solve_ticks < round(30.0 / ts)
     values = out.solve_values[published]
     errors = [max(abs(v[0] / truth["taus1"][0] - 1.0), abs(v[2] / truth["taus2"][0] - 1.0))
               for v in values.astype(float)]
@@ -293,7 +300,7 @@ def fault_check(out, truth) -> dict[str, object]:
     faults = truth["faults"]
     flags = out.flags
     expected = np.zeros(flags.size, dtype=bool)
-    for channel, kind, first, end in faults:
+    for channel, _kind, first, end in faults:
         expected[first:end] = True
         bit = FLAG_CH1_OPEN if channel == 1 else FLAG_CH2_SHORT
         if not np.all(flags[first:end] & bit):

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
 
 import numpy as np
-from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -40,8 +40,9 @@ def main(argv: list[str] | None = None) -> int:
         # The truth for the report (never read by the firmware).
         np.savez(args.output.with_suffix(".truth.npz"), gas=sc.gas, taus1=np.array(sc.taus1),
                  taus2=np.array(sc.taus2), t1_clean=sc.t1_clean, t2_clean=sc.t2_clean,
-                 intensity=sc.robust.intensity, lag=sc.robust.lag, flow=sc.flow, sigma1=sc.calibration.sigma1,
-                 sigma2=sc.calibration.sigma2, ts=sc.calibration.sample_interval,
+                 intensity=sc.robust.intensity, lag=sc.robust.lag, flow=sc.flow,
+                 sigma1=sc.calibration.sigma1, sigma2=sc.calibration.sigma2,
+                 ts=sc.calibration.sample_interval,
                  true_taus1=sc.true_taus1 if sc.true_taus1 is not None else np.zeros(0),
                  true_taus2=sc.true_taus2 if sc.true_taus2 is not None else np.zeros(0),
                  faults=np.array([[c, 0 if k == "open" else 1, a, b] for c, k, a, b in sc.faults]

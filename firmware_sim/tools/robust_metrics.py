@@ -31,7 +31,6 @@ from pathlib import Path
 
 import numpy as np
 import scipy.linalg
-
 from fwstream import FAULT_FLAGS, FLAG_GAS_VALID, FirmwareOutput
 
 

@@ -133,7 +133,7 @@ def drive_cycle_100hz(*, seed: int = 3, duration: float = 300.0, order: int = 2,
     s2 = simulate.FieldSensor(tau_ref=3.0, exponent=0.5, sheath_tau_ref=0.3, noise_std=0.02)
     rec = simulate.simulate_field_pair(conditions, s1, s2, sample_rate=100.0, v_ref=20.0,
                                        rng=rng)
-    n = int(round(duration * 100.0))
+    n = round(duration * 100.0)
     to_c = 273.15
     counts1 = _counts(rec.t1[:n] - to_c)
     counts2 = _counts(rec.t2[:n] - to_c)
@@ -164,7 +164,7 @@ def small_excitation_100hz(*, seed: int = 5, duration: float = 150.0) -> RobustS
     what a solve may publish; without excitation it must publish nothing."""
     rng = np.random.default_rng(seed)
     ts = 0.01
-    n = int(round(duration / ts))
+    n = round(duration / ts)
     t = np.arange(n) * ts
     # A slow random wiggle bounded to +/-2 K: the sum of a few sines of random phase.
     freqs = np.array([0.013, 0.031, 0.057, 0.11])

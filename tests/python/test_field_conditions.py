@@ -117,7 +117,7 @@ def test_without_flow_an_unexplained_pair_is_refused_not_absurd() -> None:
     number the data do not determine (it was 207 +/- 332 s and a reconstruction 2,500 K off the
     gas, exit 0)."""
     rec = _record(CASES[2])
-    with pytest.raises(EstimationError, match="give --flow|longer than a third of the record"):
+    with pytest.raises(EstimationError, match=r"give --flow|longer than a third of the record"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
 
 
