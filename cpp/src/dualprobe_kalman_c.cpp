@@ -148,11 +148,13 @@ dp_status kalman_update(RobustKalman* k, float t1, float t2, float psi, float* g
   if (core->set_model(phi, process) != dualprobe::Status::ok) return DP_STATUS_INFEASIBLE;
   float out = 0.0f;
   const dualprobe::Status status = core->update(t1, t2, &out);
-  if (status != dualprobe::Status::ok) return static_cast<dp_status>(status);
-  if (k->lag > 0) {  // a failed lagged update restarts that filter only (not ready for a while)
+  if (k->lag > 0) {
+    // Every valid sample, whatever the causal filter's status, so both stay on one time grid;
+    // a failed lagged update restarts that filter only (not ready for lag samples).
     Lagged<N>* lagged = k->lag_filter<N>();
     if (lagged->set_model(phi, process) == dualprobe::Status::ok) (void)lagged->update(t1, t2);
   }
+  if (status != dualprobe::Status::ok) return static_cast<dp_status>(status);
   *gas = out;
   return DP_STATUS_OK;
 }
