@@ -584,28 +584,32 @@ class KalmanReconstructor {
   // Pushes the filtered gas of the interval's start as the newest lagged instant (the oldest
   // dropped when the ring is full), then ages every cross covariance: C <- C Phi^T.
   void lagged_predict(const Matrix& phi) noexcept {
-    // Filling: slots 0, 1, ... in order; full: the oldest slot (after the newest) is reused.
-    if (lag_count_ < lag_) {
-      lag_head_ = lag_count_++;
+    if constexpr (MaxLag == 0) {  // no code (and no zero-size array access) without a lag
+      (void)phi;
     } else {
-      lag_head_ = lag_head_ + 1 == lag_ ? 0 : lag_head_ + 1;
-    }
-    LagEntry& fresh = lagged_[lag_head_];
-    fresh.mean = x_[0];
-    fresh.variance = p_(0, 0);
-    for (int i = 0; i < MaxStates; ++i) fresh.cross[i] = p_(0, i);
-    for (int a = 0; a < lag_count_; ++a) {
-      Scalar* c = lagged_[a].cross;
-      Scalar aged[MaxStates];
-#pragma GCC unroll 6
-      for (int i = 0; i < MaxStates; ++i) {
-        Scalar s = c[0] * phi(i, 0);
-#pragma GCC unroll 6
-        for (int j = 1; j < MaxStates; ++j) s += c[j] * phi(i, j);
-        aged[i] = s;
+      // Filling: slots 0, 1, ... in order; full: the oldest slot (after the newest) is reused.
+      if (lag_count_ < lag_) {
+        lag_head_ = lag_count_++;
+      } else {
+        lag_head_ = lag_head_ + 1 == lag_ ? 0 : lag_head_ + 1;
       }
+      LagEntry& fresh = lagged_[lag_head_];
+      fresh.mean = x_[0];
+      fresh.variance = p_(0, 0);
+      for (int i = 0; i < MaxStates; ++i) fresh.cross[i] = p_(0, i);
+      for (int a = 0; a < lag_count_; ++a) {
+        Scalar* c = lagged_[a].cross;
+        Scalar aged[MaxStates];
 #pragma GCC unroll 6
-      for (int i = 0; i < MaxStates; ++i) c[i] = aged[i];
+        for (int i = 0; i < MaxStates; ++i) {
+          Scalar s = c[0] * phi(i, 0);
+#pragma GCC unroll 6
+          for (int j = 1; j < MaxStates; ++j) s += c[j] * phi(i, j);
+          aged[i] = s;
+        }
+#pragma GCC unroll 6
+        for (int i = 0; i < MaxStates; ++i) c[i] = aged[i];
+      }
     }
   }
 
@@ -613,18 +617,24 @@ class KalmanReconstructor {
   // variance -= rho S^-1 rho^T, C <- C - rho K^T (K from the prior covariance, as for x).
   void lagged_update(const Gain& gain, Scalar e0, Scalar e1, Scalar i00, Scalar i01,
                      Scalar i11) noexcept {
-    const int o1 = layout_.output1;
-    const int o2 = layout_.output2;
-    for (int a = 0; a < lag_count_; ++a) {
-      LagEntry& entry = lagged_[a];
-      const Scalar r0 = entry.cross[o1];
-      const Scalar r1 = entry.cross[o2];
-      const Scalar g0 = r0 * i00 + r1 * i01;
-      const Scalar g1 = r0 * i01 + r1 * i11;
-      entry.mean += g0 * e0 + g1 * e1;
-      entry.variance -= g0 * r0 + g1 * r1;
+    if constexpr (MaxLag == 0) {
+      (void)gain, (void)e0, (void)e1, (void)i00, (void)i01, (void)i11;
+    } else {
+      const int o1 = layout_.output1;
+      const int o2 = layout_.output2;
+      for (int a = 0; a < lag_count_; ++a) {
+        LagEntry& entry = lagged_[a];
+        const Scalar r0 = entry.cross[o1];
+        const Scalar r1 = entry.cross[o2];
+        const Scalar g0 = r0 * i00 + r1 * i01;
+        const Scalar g1 = r0 * i01 + r1 * i11;
+        entry.mean += g0 * e0 + g1 * e1;
+        entry.variance -= g0 * r0 + g1 * r1;
 #pragma GCC unroll 6
-      for (int i = 0; i < MaxStates; ++i) entry.cross[i] -= r0 * gain(i, 0) + r1 * gain(i, 1);
+        for (int i = 0; i < MaxStates; ++i) {
+          entry.cross[i] -= r0 * gain(i, 0) + r1 * gain(i, 1);
+        }
+      }
     }
   }
 
