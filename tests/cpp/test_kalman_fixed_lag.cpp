@@ -101,6 +101,21 @@ void model_at(double psi, const KalmanConfig<S>& base, typename Filter<S>::Matri
   *q = twin.process_noise(0);
 }
 
+// Sample k into a scheduled filter: the interval's model (from psi at k - 1), then the update.
+template <typename S>
+::testing::AssertionResult scheduled_update(Filter<S>& f, const KalmanConfig<S>& c,
+                                            const Data& d, std::size_t k, S* gas) {
+  if (k > 0) {
+    typename Filter<S>::Matrix phi, q;
+    model_at<S>(d.psi[k - 1], c, &phi, &q);
+    if (f.set_model(phi, q) != Status::ok) return ::testing::AssertionFailure() << "set_model";
+  }
+  if (f.update(S(d.t1[k]), S(d.t2[k]), gas) != Status::ok) {
+    return ::testing::AssertionFailure() << "update at " << k;
+  }
+  return ::testing::AssertionSuccess();
+}
+
 // Runs the filter, storing every filtered state and covariance and every interval's model; at
 // each k >= L compares the filter's lagged output with an RTS pass from k back to k - L.
 template <typename S>
@@ -173,18 +188,10 @@ TEST(KalmanFixedLag, FloatRoundsNoWorseThanTheFilter) {
   double filtered = 0.0;
   double lagged = 0.0;
   for (std::size_t k = 0; k < d.gas.size(); ++k) {
-    if (k > 0) {
-      Filter<float>::Matrix pf, qf;
-      model_at<float>(d.psi[k - 1], cf, &pf, &qf);
-      ASSERT_EQ(ff.set_model(pf, qf), Status::ok);
-      Filter<double>::Matrix pd, qd;
-      model_at<double>(d.psi[k - 1], cd, &pd, &qd);
-      ASSERT_EQ(fd.set_model(pd, qd), Status::ok);
-    }
     float gf = 0.0f;
     double gd = 0.0;
-    ASSERT_EQ(ff.update(float(d.t1[k]), float(d.t2[k]), &gf), Status::ok);
-    ASSERT_EQ(fd.update(d.t1[k], d.t2[k], &gd), Status::ok);
+    ASSERT_TRUE(scheduled_update(ff, cf, d, k, &gf));
+    ASSERT_TRUE(scheduled_update(fd, cd, d, k, &gd));
     float lf = 0.0f;
     double ld = 0.0;
     if (k < 200 || !ff.lagged(&lf, nullptr) || !fd.lagged(&ld, nullptr)) continue;
@@ -206,13 +213,8 @@ TEST(KalmanFixedLag, CloserToTheTruthThanTheFilter) {
   double lagged = 0.0;
   int count = 0;
   for (std::size_t k = 0; k < d.gas.size(); ++k) {
-    if (k > 0) {
-      Filter<double>::Matrix phi, q;
-      model_at<double>(d.psi[k - 1], c, &phi, &q);
-      ASSERT_EQ(f.set_model(phi, q), Status::ok);
-    }
     double gas = 0.0;
-    ASSERT_EQ(f.update(d.t1[k], d.t2[k], &gas), Status::ok);
+    ASSERT_TRUE(scheduled_update(f, c, d, k, &gas));
     double back = 0.0;
     if (k < 1000 || !f.lagged(&back, nullptr)) continue;
     causal += (gas - d.gas[k]) * (gas - d.gas[k]);
