@@ -41,21 +41,13 @@ struct RobustKalman {
   int states{0};  // 3 (Kalman<3>) or 5 (Kalman<5>, 4 or 5 used); 0: not configured
 
   template <int N>
-  Kalman<N>* as() noexcept {
-    return std::launder(reinterpret_cast<Kalman<N>*>(core));
-  }
+  Kalman<N>* as() noexcept { return placed<Kalman<N>>(core); }
   template <int N>
-  const Kalman<N>* as() const noexcept {
-    return std::launder(reinterpret_cast<const Kalman<N>*>(core));
-  }
+  const Kalman<N>* as() const noexcept { return placed<Kalman<N>>(core); }
   template <int N>
-  Lagged<N>* lag_filter() noexcept {
-    return std::launder(reinterpret_cast<Lagged<N>*>(lagged));
-  }
+  Lagged<N>* lag_filter() noexcept { return placed<Lagged<N>>(lagged); }
   template <int N>
-  const Lagged<N>* lag_filter() const noexcept {
-    return std::launder(reinterpret_cast<const Lagged<N>*>(lagged));
-  }
+  const Lagged<N>* lag_filter() const noexcept { return placed<Lagged<N>>(lagged); }
 };
 
 static_assert(sizeof(RobustKalman) <= sizeof(dp_kalman_instance_f32::storage),

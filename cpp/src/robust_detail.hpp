@@ -6,6 +6,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <cstring>
+#include <new>
 
 namespace dualprobe {
 namespace c_detail {
@@ -23,6 +24,16 @@ constexpr std::size_t max_align() {
   std::size_t out = 0;
   for (std::size_t s : {alignof(T)...}) out = s > out ? s : out;
   return out;
+}
+
+// The object built with placement new in raw storage (sized by max_size / max_align).
+template <typename T>
+T* placed(unsigned char* storage) noexcept {
+  return std::launder(reinterpret_cast<T*>(storage));
+}
+template <typename T>
+const T* placed(const unsigned char* storage) noexcept {
+  return std::launder(reinterpret_cast<const T*>(storage));
 }
 
 // libm's expf/expm1f/logf differ in the last bit between glibc and newlib; on the per-sample

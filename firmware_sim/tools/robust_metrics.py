@@ -193,12 +193,13 @@ def drive_cycle_metrics(out: FirmwareOutput, truth: dict, *, smoother: bool = Tr
             smoothed = oracle_smoother(t1, t2, truth, healthy)
             result["smoother_rmse"] = rmse(smoothed[valid], gas[valid])
             smoothers = [smoothed]
+            best = result["smoother_rmse"]
             if "flow" in truth:
                 product = offline_smoother(out, np.asarray(truth["flow"], float))
                 if product is not None:
                     smoothers.append(product)
                     result["offline_smoother_rmse"] = rmse(product[valid], gas[valid])
-            best = min(rmse(s[valid], gas[valid]) for s in smoothers)
+                    best = min(best, result["offline_smoother_rmse"])
             result["causal_over_smoother"] = recon / best
             result["causal_bound"] = genie_bound(truth, valid, best)
             lag = int(truth.get("lag", 0))

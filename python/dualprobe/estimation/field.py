@@ -214,16 +214,27 @@ def track_without_flow(
 _STATIC_WINDOW = 240.0  # s: constant fits of half-overlapping windows for the static map's start
 
 
+def _window_fits(t1: np.ndarray, t2: np.ndarray, fit: Fit, seconds: float, *, order: int,
+                 static: str) -> list[tuple[slice, Fit]]:
+    """Constant fits (ok ones) of half-overlapping windows of ``seconds`` (at least 50 rows, at
+    most a quarter of the record), with ``fit``'s sampling, filter and noise."""
+    rows = max(min(int(seconds / fit.ts), t1.size // 4), 50)
+    fits = []
+    for start in range(0, t1.size - rows + 1, max(rows // 2, 1)):
+        part = slice(start, start + rows)
+        res = engine.fit(t1[part], t2[part], fit.ts, tf=fit.tf, order=order, static=static,
+                         sigma=fit.sigma)
+        if res is not None and res.ok:
+            fits.append((part, res))
+    return fits
+
+
 def _windowed_static(t1: np.ndarray, t2: np.ndarray, fit: Fit) -> tuple[float, float]:
     """Median gain ratio and offset of first-order affine fits of half-overlapping windows
     (the whole record's fit if no window fits)."""
-    rows = max(min(int(_STATIC_WINDOW / fit.ts), t1.size // 4), 50)
     gains, offsets = [], []
-    for start in range(0, t1.size - rows + 1, max(rows // 2, 1)):
-        part = slice(start, start + rows)
-        res = engine.fit(t1[part], t2[part], fit.ts, tf=fit.tf, order=1, static="affine",
-                         sigma=fit.sigma)
-        if res is not None and res.ok and math.isfinite(res.gain_ratio * res.offset):
+    for _, res in _window_fits(t1, t2, fit, _STATIC_WINDOW, order=1, static="affine"):
+        if math.isfinite(res.gain_ratio * res.offset):
             gains.append(res.gain_ratio)
             offsets.append(res.offset)
     if not gains:
@@ -239,15 +250,9 @@ def windowed_time_constants(t1: np.ndarray, t2: np.ndarray, estimate: PairEstima
     each estimate averages the flow over that span: the points scatter about the law."""
     fit = _fit_of(estimate)
     slow = max(estimate.time_constants[0][0], estimate.time_constants[1][0])
-    rows = int(max(10.0 * slow, 60.0) / fit.ts)
-    rows = max(min(rows, t1.size // 4), 50)
     flows, taus = [], []
-    for start in range(0, t1.size - rows + 1, max(rows // 2, 1)):
-        part = slice(start, start + rows)
-        res = engine.fit(t1[part], t2[part], fit.ts, tf=fit.tf, order=fit.order,
-                         static=fit.static, sigma=fit.sigma)
-        if res is None or not res.ok:
-            continue
+    for part, res in _window_fits(t1, t2, fit, max(10.0 * slow, 60.0), order=fit.order,
+                                  static=fit.static):
         pair = (res.time_constants[0][0], res.time_constants[1][0])
         if all(math.isfinite(v) and v > 0.0 for v in pair):
             flows.append(float(np.median(flow_values[part])))
