@@ -214,3 +214,14 @@ def test_without_flow_a_varying_pair_is_tracked_not_refused() -> None:
     assert result.gas_estimate is not None
     raw = _rmse(rec.t1, rec.tg)
     assert _rmse(result.gas_estimate, rec.tg) < 0.25 * raw
+
+
+def test_without_flow_an_oscillating_misfit_is_refused_not_absurd() -> None:
+    """A flow-following pair with a sheath on the fast sensor only and unequal gains,
+    characterised without the flow: the constant order-2 fit has complex poles on both sensors
+    ("6.1, 6.1 s") and misfits 850x the noise, while the smoother fits a gas 69 K RMS off the
+    truth with residuals at the noise. Refused (exit 3) with what would help."""
+    case = Case(0.35, 2.2, (0.6, 0.0), (0.985, 1.02), 8)
+    rec = _record(case)
+    with pytest.raises(EstimationError, match=r"give --flow"):
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")

@@ -11,7 +11,9 @@ import numpy as np
 from dualprobe.estimation import engine
 from dualprobe.estimation.engine import Fit
 
-__all__ = ["SubModelFit", "resolved", "sensor_order_fits"]
+__all__ = ["COMPLEX_NOTE", "SubModelFit", "resolved", "sensor_order_fits"]
+
+COMPLEX_NOTE = "complex pole pair: reported as a double pole"
 
 
 def resolved(taus: tuple[float, ...], poly: tuple[float, ...]) -> tuple[tuple[float, ...], str]:
@@ -24,7 +26,7 @@ def resolved(taus: tuple[float, ...], poly: tuple[float, ...]) -> tuple[tuple[fl
         if d <= 0.0:
             return (c,), "second time constant below resolution (first-order response)"
         if c * c < 4.0 * d:
-            return (0.5 * c, 0.5 * c), "complex pole pair: reported as a double pole"
+            return (0.5 * c, 0.5 * c), COMPLEX_NOTE
     return taus, "no positive real time constants"
 
 

@@ -13,8 +13,12 @@ on: a time constant longer than a third of the record (the record cannot determi
 dominant time constant whose standard uncertainty exceeds its value while the model misfits (no
 number at all: a wrong model fitted to what it cannot explain; seen on a gain-mismatched,
 sheathed pair whose time constants follow the flow, characterised without the flow: 207 +/- 332
-s and a reconstruction 2,500 K off), or a reconstruction that predicts a sensor worse than the
-other sensor's raw reading does (the model is worse than no model).
+s and a reconstruction 2,500 K off), a complex pole pair (oscillating dynamics, which no thermal
+sensor has) while the model misfits (seen on a flow-following pair with a sheath on one sensor
+and unequal gains, without the flow: "6.1, 6.1 s" and a reconstruction 69 K off the gas, its
+residuals at the noise because the smoother fitted a gas to the wrong model), or a reconstruction
+that predicts a sensor worse than the other sensor's raw reading does (the model is worse than
+no model).
 """
 
 from __future__ import annotations
@@ -26,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
+from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
 
@@ -127,6 +132,16 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                     "x the noise); the time constants may follow the gas flow (give --flow), "
                     "or the sensors differ in a way the model lacks (try --order 1, or "
                     "dualprobe diagnose)")
+    if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+        notes = estimate.identifiability.get("notes", [])
+        for i, column in enumerate(columns):
+            if isinstance(notes, list) and f"sensor {i + 1}: {COMPLEX_NOTE}" in notes:
+                raise EstimationError(
+                    f"{column}: the fitted dynamics oscillate (a complex pole pair, which no "
+                    f"thermal sensor has) and the model does not explain the signals (misfit "
+                    f"{mu:.3g} x the noise): no reconstruction can be trusted; the time "
+                    "constants may follow the gas flow (give --flow), or try --order 1 or "
+                    "dualprobe diagnose")
     if residuals is None:
         return
     spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
