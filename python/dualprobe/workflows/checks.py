@@ -16,7 +16,9 @@ sheathed pair whose time constants follow the flow, characterised without the fl
 s and a reconstruction 2,500 K off), a complex pole pair (oscillating dynamics, which no thermal
 sensor has) while the model misfits (seen on a flow-following pair with a sheath on one sensor
 and unequal gains, without the flow: "6.1, 6.1 s" and a reconstruction 69 K off the gas, its
-residuals at the noise because the smoother fitted a gas to the wrong model), or a reconstruction
+residuals at the noise because the smoother fitted a gas to the wrong model), two order-2 sensors
+sharing a time constant while the model misfits (a common factor, which no pair can determine:
+47.6 / 50.1 s and a gas 218 K off on a flow-following pair without the flow), or a reconstruction
 that predicts a sensor worse than the other sensor's raw reading does (the model is worse than
 no model).
 """
@@ -37,6 +39,21 @@ from dualprobe.io import EstimationError
 __all__ = ["MISFIT_LIMIT", "ModelCheck", "check_model", "refuse_implausible"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
+# Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
+# factor common to both transfer functions cancels from the cross-relation (it multiplies both
+# sides), so a pair cannot determine it. Seen: 47.6 and 50.1 s for true 4.7 / 9.4 s elements.
+SHARED_FACTOR = 0.2
+
+
+def _shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
+                          ) -> tuple[float, float] | None:
+    """The closest pair of time constants, one per sensor, when both sensors are of order 2
+    and the two lie within ``SHARED_FACTOR`` of each other (None otherwise)."""
+    if len(taus[0]) < 2 or len(taus[1]) < 2:
+        return None
+    a, b = min(((x, y) for x in taus[0] for y in taus[1]),
+               key=lambda p: abs(p[0] - p[1]) / max(p[0], p[1]))
+    return (a, b) if abs(a - b) <= SHARED_FACTOR * max(a, b) else None
 
 
 @dataclass(frozen=True)
@@ -142,6 +159,14 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                     f"{mu:.3g} x the noise): no reconstruction can be trusted; the time "
                     "constants may follow the gas flow (give --flow), or try --order 1 or "
                     "dualprobe diagnose")
+        shared = _shared_time_constant(estimate.time_constants)
+        if shared is not None:
+            raise EstimationError(
+                f"both sensors' fitted dynamics share a time constant ({shared[0]:.3g} and "
+                f"{shared[1]:.3g} s) and the model does not explain the signals (misfit "
+                f"{mu:.3g} x the noise): a factor common to both sensors is invisible to a pair, "
+                "so the data do not determine it; the time constants may follow the gas flow "
+                "(give --flow), or try --order 1 or dualprobe diagnose")
     if residuals is None:
         return
     spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
