@@ -111,12 +111,15 @@ def test_without_flow_tracking_stays_within_2_5x_the_oracle() -> None:
     assert ours <= 2.5 * best, (ours, best)
 
 
-def test_without_flow_unequal_gains_are_tracked() -> None:
-    """Gains 0.97 / 1.03 (no sheath), no flow: unit-gain tracking cannot explain the pair, the
+@pytest.mark.parametrize("case", [CASES[0], Case(0.51, 2.23, (0.0, 0.0), (1.002, 0.998), 204)],
+                         ids=["gains-0.97-1.03", "gains-1.002-0.998"])
+def test_without_flow_unequal_gains_are_tracked(case: Case) -> None:
+    """Unequal gains (no sheath), no flow: unit-gain tracking cannot explain the pair, the
     whole record's affine map is biased by the very variation being tracked; the searched map
-    is what lets the tracker follow the flow (it stayed at constant time constants, 3.8x the
-    oracle, before). Measured: 0.91 K against the oracle's 0.77 K (1.18x)."""
-    case = CASES[0]
+    is what lets the tracker follow the flow. Gains 0.97 / 1.03 stayed at constant time
+    constants (3.8x the oracle) before the search, now 0.91 K against the oracle's 0.77 K
+    (1.18x). Gains 1.002 / 0.998 (2.4 K at 600 K): the constant model chose unit gains, so the
+    search was not tried (9.6x the oracle); now 1.07 K against 0.77 K (1.38x)."""
     rec = _record(case)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
     model = result.estimate.flow_model
@@ -224,7 +227,11 @@ def test_without_flow_a_varying_pair_is_tracked_not_refused() -> None:
     # sheath on the slow sensor only: the constant order-2 fit puts a shared 47.6 / 50.1 s
     # factor on both sensors (true elements 4.7 / 9.4 s), and the gas comes out 218 K off
     Case(0.4, 2.0, (0.0, 0.6), (1.0, 1.0), 10),
-], ids=["complex-poles", "shared-factor"])
+    # sheath on the slow sensor, unequal gains: a gain ratio of 0.876 (truth 0.953), and a gas
+    # 104 K RMS from both sensors, 6.7 times their mutual disagreement where lagging sensors
+    # allow 1.8 times: 90 K off the truth
+    Case(0.41, 2.97, (0.0, 0.77), (0.98, 1.028), 203),
+], ids=["complex-poles", "shared-factor", "departing-gas"])
 def test_without_flow_a_misfit_constant_order_2_fit_is_refused_not_absurd(case: Case) -> None:
     """Flow-following pairs with one sheathed sensor, characterised without the flow: the
     constant order-2 fit absorbs the variation in poles no physics allows. Refused (exit 3)

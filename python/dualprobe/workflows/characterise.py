@@ -208,7 +208,7 @@ def characterise_arrays(
                 raise EstimationError("reconstruction produced no values to compare")
             rmse = float(np.sqrt(np.mean((gas[valid] - reference[valid]) ** 2)))
     duration = (t1.size - 1) * ts
-    refuse_implausible(estimate, duration, columns, residuals, (t1, t2))
+    refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static)
     noise = estimate.noise_std
     used = estimate.details.get("noise_std_used", noise)
     levels = (float(used[0]), float(used[1]))  # type: ignore[index]
