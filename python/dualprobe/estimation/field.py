@@ -163,8 +163,9 @@ def _curve(
 def track_without_flow(
     t1: np.ndarray, t2: np.ndarray, base: PairEstimate, run: RunSvf,
 ) -> tuple[PairEstimate, FlowModel]:
-    """Tracked time constants when the constant model misfits and tracking removes the misfit
-    (both by ``GAP_THRESHOLD``, and psi varying by more than 5 %); else the base unchanged."""
+    """Tracked time constants when the constant model misfits (by ``GAP_THRESHOLD`` and by at
+    least ``_TRACKING_MISFIT`` times the noise) and tracking removes the misfit (by
+    ``GAP_THRESHOLD``, psi varying by more than 5 %); else the base unchanged."""
     base_fit = _fit_of(base)
     n_eff = _effective_rows(base)
     stats: dict[str, float] = {"effective_rows": n_eff, "misfit_constant": base_fit.misfit}
