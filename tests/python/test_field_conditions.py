@@ -235,7 +235,7 @@ def test_without_flow_a_varying_pair_is_tracked_not_refused() -> None:
 def test_without_flow_a_misfit_constant_order_2_fit_is_refused_not_absurd(case: Case) -> None:
     """Flow-following pairs with one sheathed sensor, characterised without the flow: the
     constant order-2 fit absorbs the variation in poles no physics allows. Refused (exit 3)
-    with what would help, never a number (both once came out with exit 0)."""
+    with what would help, never a number (each once came out with exit 0)."""
     rec = _record(case)
     with pytest.raises(EstimationError, match=r"give --flow"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")

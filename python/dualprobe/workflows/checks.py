@@ -147,8 +147,9 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 "larger and faster temperature changes"
                 + (" (or use --order 1)" if len(taus) > 1 else ""))
     mu, statistic = _misfit(estimate)
+    misfits = math.isfinite(statistic) and statistic > GAP_THRESHOLD
     confidence = estimate.confidence
-    if confidence is not None and math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+    if confidence is not None and misfits:
         for i, column in enumerate(columns):
             name = f"tau{i + 1}_0"  # the dominant time constant
             value = confidence.values.get(name, math.nan)
@@ -160,7 +161,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                     "x the noise); the time constants may follow the gas flow (give --flow), "
                     "or the sensors differ in a way the model lacks (try --order 1, or "
                     "dualprobe diagnose)")
-    if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+    if misfits:
         notes = estimate.identifiability.get("notes", [])
         for i, column in enumerate(columns):
             if isinstance(notes, list) and f"sensor {i + 1}: {COMPLEX_NOTE}" in notes:
