@@ -4,9 +4,11 @@
 
 Each case draws m in 0.3-0.7, a time-constant ratio in 2-4, sheath stages of 0.1-0.8 s on each
 sensor with probability 0.6, and gains in 0.97-1.03 on half the cases (20 min, 10 Hz, 0.05 K
-noise, 0.02 K ADC steps: tests/python/test_field_conditions.py). Each line: "ok" within 2.5x the
-oracle, "weak" beyond it but better than the raw fast sensor, "BAD" worse than the raw fast
-sensor with exit 0 (a defect), or "REFUSED" (exit 3) with the reason.
+noise, 0.02 K ADC steps: tests/python/test_field_conditions.py). Each line: the flow model, the
+per-row dominant time constants' RMS relative errors, the sensor orders, and "ok" within the
+issue's bound of the oracle (1.5x with the flow, 2.5x without), "weak" beyond it but better than
+the raw fast sensor, "BAD" worse than the raw fast sensor with exit 0 (a defect), or "REFUSED"
+(exit 3) with the reason.
 """
 
 from __future__ import annotations
@@ -47,8 +49,16 @@ def sweep(seed: int, count: int, with_flow: bool) -> None:
         ours = _rmse(result.gas_estimate, target)
         best = _oracle_rmse(rec, case)
         model = result.estimate.flow_model
-        verdict = "BAD" if ours > raw else ("ok" if ours <= 2.5 * best else "weak")
-        print(verdict, case, model.kind if model else None, f"gas {ours:.2f} raw {raw:.2f} "
+        bound = 1.5 if with_flow else 2.5  # issue 11's bounds on the oracle ratio
+        verdict = "BAD" if ours > raw else ("ok" if ours <= bound * best else "weak")
+        tau1, tau2 = result.time_constants_per_row()
+        errors = [float(np.sqrt(np.mean((est / truth - 1.0) ** 2)))
+                  for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2))]
+        exponent = f" m {model.exponent:.2f}" if with_flow and model else ""
+        orders = [len(taus) for taus in result.estimate.time_constants]
+        print(verdict, case, model.kind if model else None, exponent,
+              f"tau rms {errors[0]:.3f} {errors[1]:.3f} orders {orders} "
+              f"gas {ours:.2f} raw {raw:.2f} "
               f"oracle {best:.2f} ({ours / best:.2f}x) adequate {result.model_check.adequate} "
               f"{time.perf_counter() - start:.0f} s", flush=True)
 
