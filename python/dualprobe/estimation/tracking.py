@@ -8,8 +8,8 @@ functions of time, ``psi(t) = sum_k a_k B_k(t)`` with knots every ``spacing`` sa
 static column becomes one filtered column ``F(B_k (T2 - T1))`` per knot, the derivative
 columns stay. The generalised TLS over all columns with a penalty on the first differences of
 a (a random walk of psi), ``min v' (S + lambda R) v / v' C v``, is a sparse generalised
-eigenproblem (banded knot block, a few dense derivative columns), solved by shift-invert
-Lanczos. The penalty weight follows the discrepancy principle: the largest lambda whose
+eigenproblem (banded knot block, a few dense derivative columns; its moments:
+:mod:`dualprobe.estimation.knots`), solved by shift-invert Lanczos. The penalty weight follows the discrepancy principle: the largest lambda whose
 normalised misfit mu stays within the noise band of the best attainable fit, so the tracked
 psi is as smooth as the data allow and exactly constant when the time constants do not vary.
 
@@ -21,7 +21,6 @@ and 8.6 K with constant time constants.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -31,145 +30,21 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
 from dualprobe.estimation import engine
+from dualprobe.estimation.knots import (
+    KnotSystem,
+    RowFilter,
+    knot_parts,
+    knot_system,
+    sparse_system,
+)
 
 
 class TrackingError(RuntimeError):
     """The tracker found no solution (the caller keeps constant time constants)."""
 
 
-# Filter of the SVF on a batch of rows: (R, L) inputs -> (R, L) outputs x_0 = F u, the filter
-# at rest before each row (supplied by the engine: the compiled core's cascade).
-RowFilter = Callable[[np.ndarray], np.ndarray]
-
 _DENSE_LIMIT = 3000  # knots + derivative columns solved densely when Lanczos fails
 _TAIL = 34.0  # filter memory kept per knot column, in tf: exp(-34) ~ 2e-15 of its peak
-_MAX_KNOT_ELEMENTS = 4_000_000  # knot columns filtered per batch (memory: 32 MB of doubles)
-
-
-@dataclass(frozen=True)
-class KnotSystem:
-    """Moments of the time-knot cross-relation: dense derivative columns first (D), then one
-    static column per knot (K). ``band[j, k]`` = S[knot k, knot k + j]; ``cross`` (K, D);
-    ``dense`` (D, D); noise: ``noise_dense`` (D, D), ``noise_cross`` (K, D),
-    ``noise_band`` (2, K) (tridiagonal knot block); ``hat`` the knot weights at the samples."""
-
-    spacing: int
-    knots: int
-    samples: int
-    band: np.ndarray
-    cross: np.ndarray
-    dense: np.ndarray
-    noise_dense: np.ndarray
-    noise_cross: np.ndarray
-    noise_band: np.ndarray
-    projection: tuple[np.ndarray, np.ndarray]  # (S_zb (D + K, m), S_bb (m, m))
-
-    def psi(self, coefficients: np.ndarray) -> np.ndarray:
-        """psi at every sample from the knot coefficients (hat functions)."""
-        position = np.arange(self.samples) / self.spacing
-        return np.interp(position, np.arange(self.knots), coefficients)
-
-
-def _knot_layout(samples: int, spacing: int, tail: int) -> tuple[int, int, np.ndarray]:
-    knots = math.ceil((samples - 1) / spacing) + 1
-    length = 2 * spacing + tail
-    start = (np.arange(knots) - 1) * spacing  # support of knot k begins at knot k - 1
-    return knots, length, start
-
-
-def knot_system(
-    dense_columns: np.ndarray,
-    dense_weights: np.ndarray,
-    difference: np.ndarray,
-    spacing: int,
-    tail: int,
-    row_filter: RowFilter,
-    free_responses: np.ndarray,
-    row_noise: np.ndarray,
-) -> KnotSystem:
-    """Assemble the knot system.
-
-    ``dense_columns`` (D, N): the derivative columns of the cross-relation (filtered, signed);
-    ``dense_weights`` (D, N): their noise weights (1, or phi for the order-2 columns);
-    ``difference`` (N,): the static signal (T2 - T1, or g T2 + o - T1) whose knot-weighted
-    versions are filtered; ``free_responses`` (m, K0): the filter's free responses over the
-    first rows (projected out); ``row_noise`` (D + 1, D + 1): the stationary per-row noise
-    covariance of the unscheduled columns (static last).
-    """
-    d_count, samples = dense_columns.shape
-    knots, length, start = _knot_layout(samples, spacing, tail)
-    positions = np.arange(length)
-    band_width = math.ceil(length / spacing)
-    band = np.zeros((band_width, knots))
-    cross = np.zeros((knots, d_count))
-    basis_rows = free_responses.shape[1]
-    z_b = np.zeros((d_count + knots, free_responses.shape[0]))
-    z_b[:d_count] = dense_columns[:, :basis_rows] @ free_responses.T
-    noise_cross = np.zeros((knots, d_count))
-    noise_band = np.zeros((2, knots))
-    batch = max(band_width, _MAX_KNOT_ELEMENTS // length)
-    for first in range(0, knots, batch):
-        last = min(first + batch, knots)
-        extended = min(last + band_width, knots)  # neighbours the band pairs reach
-        pos = start[first:extended, None] + positions[None, :]
-        valid = (pos >= 0) & (pos < samples)
-        clipped = np.clip(pos, 0, samples - 1)
-        centre = start[first:extended, None] + spacing
-        hat = np.where(valid, np.maximum(0.0, 1.0 - np.abs(pos - centre) / spacing), 0.0)
-        columns = row_filter(hat * difference[clipped]) * valid
-        own = last - first
-        cross[first:last] = np.einsum("kl,dkl->kd", columns[:own], dense_columns[:, clipped[:own]])
-        noise_cross[first:last] = np.einsum("kl,dkl->kd", hat[:own],
-                                            dense_weights[:, clipped[:own]])
-        noise_band[0, first:last] = np.sum(hat[:own] ** 2, axis=1)
-        pairs = min(own, hat.shape[0] - 1)
-        noise_band[1, first : first + pairs] = np.sum(
-            hat[:pairs, spacing:] * hat[1 : pairs + 1, : length - spacing], axis=1)
-        for j in range(min(band_width, hat.shape[0])):
-            shift = j * spacing
-            count = min(own, hat.shape[0] - j)
-            band[j, first : first + count] = np.sum(
-                columns[:count, shift:] * columns[j : j + count, : length - shift], axis=1)
-        early = np.flatnonzero(start[first:last] < basis_rows)
-        if early.size:
-            inside = np.clip(pos[early], 0, basis_rows - 1)
-            mask = valid[early] & (pos[early] < basis_rows)
-            z_b[d_count + first + early] = np.einsum(
-                "kl,mkl->km", columns[early] * mask, free_responses[:, inside])
-    dense = dense_columns @ dense_columns.T
-    noise_dense = (dense_weights @ dense_weights.T) * row_noise[:d_count, :d_count]
-    noise_cross = noise_cross * row_noise[:d_count, d_count][None, :]
-    noise_band = noise_band * row_noise[d_count, d_count]
-    gram = free_responses @ free_responses.T
-    return KnotSystem(spacing, knots, samples, band, cross, dense, noise_dense, noise_cross,
-                      noise_band, (z_b, gram))
-
-
-def _sparse_system(system: KnotSystem) -> tuple[sp.csc_matrix, sp.csc_matrix, sp.csc_matrix]:
-    """(S, C, R) as sparse matrices in the order [dense columns, knots]; S with the start-up
-    transients projected out, R the first-difference penalty on the knot coefficients."""
-    k = system.knots
-    d = system.dense.shape[0]
-    width = system.band.shape[0]
-    upper = sp.diags([system.band[j, : k - j] for j in range(width)], list(range(width)),
-                     shape=(k, k))
-    knot_block = (upper + sp.triu(upper, 1).T).tocsc()
-    s = sp.bmat([[sp.csc_matrix(system.dense), sp.csc_matrix(system.cross.T)],
-                 [sp.csc_matrix(system.cross), knot_block]]).tocsc()
-    z_b, gram = system.projection
-    used = np.flatnonzero(np.any(z_b != 0.0, axis=1))
-    if used.size:
-        correction = z_b[used] @ np.linalg.solve(gram, z_b[used].T)
-        rows, cols = np.meshgrid(used, used, indexing="ij")
-        s = (s - sp.csc_matrix((correction.ravel(), (rows.ravel(), cols.ravel())),
-                               shape=s.shape)).tocsc()
-    knot_noise = sp.diags([system.noise_band[1, : k - 1], system.noise_band[0],
-                           system.noise_band[1, : k - 1]], [-1, 0, 1], shape=(k, k))
-    c = sp.bmat([[sp.csc_matrix(system.noise_dense), sp.csc_matrix(system.noise_cross.T)],
-                 [sp.csc_matrix(system.noise_cross), knot_noise]]).tocsc()
-    diff = sp.diags([np.ones(k - 1), -np.ones(k - 1)], [0, 1], shape=(k - 1, k))
-    r = sp.block_diag([sp.csc_matrix((d, d)), (diff.T @ diff)]).tocsc()
-    return s, c, r
 
 
 @dataclass(frozen=True)
@@ -184,7 +59,7 @@ def solve_penalised(system: KnotSystem, penalty: float,
                     ) -> TrackSolution:
     """Smallest generalised eigenpair of ``(S + penalty R) v = mu C v`` (diagonally scaled;
     ``penalty`` relative to the scaled data term)."""
-    s, c, r = matrices if matrices is not None else _sparse_system(system)
+    s, c, r = matrices if matrices is not None else sparse_system(system)
     scale = 1.0 / np.sqrt(np.maximum(s.diagonal(), np.finfo(float).tiny))
     dm = sp.diags(scale)
     a = (dm @ (s + penalty * r) @ dm).tocsc()
@@ -217,7 +92,7 @@ def choose_penalty(
     """(chosen, freest, stiffest): the discrepancy principle on log penalty. The chosen penalty
     is the largest whose misfit stays within ``band`` noise standard deviations
     (``sqrt(2 / effective_rows)`` relative) of the freest fit's (floored at 1, the noise)."""
-    matrices = _sparse_system(system)
+    matrices = sparse_system(system)
     lo, hi = math.log(bounds[0]), math.log(bounds[1])
     freest = solve_penalised(system, bounds[0], matrices)
     stiffest = solve_penalised(system, bounds[1], matrices)
@@ -345,19 +220,27 @@ def search_static(
 ) -> tuple[float, float]:
     """The static map (g, o) of sensor 2 onto sensor 1 for tracking (order 1): the minimum of
     the tracked misfit at a fixed penalty (``_STATIC_SEARCH_PENALTY``) over (g, o), by
-    Nelder-Mead from ``start`` (e.g. windowed constant fits, whose medians are within ~1e-3)."""
+    Nelder-Mead from ``start`` (e.g. windowed constant fits, whose medians are within ~1e-3).
+    The knot columns are filtered once: every trial map's system is a combination of the
+    parts T2 - r, 1 and T1 - r (:class:`dualprobe.estimation.knots.KnotParts`; r centres the
+    parts so that their combination loses no digits)."""
     u1 = np.asarray(t1, dtype=float)
+    v2 = np.asarray(t2, dtype=float)
     spacing, tail, row_filter, free = _setup(u1, ts, tf, 1)
     ones = np.ones(u1.size)
+    level = float(np.mean(u1))
+    dense, weights = _dense_columns(u1, v2, ts, tf, 1, ones)  # sensor 2's column scales with g
+    parts = knot_parts(dense, weights, [v2 - level, ones, u1 - level], spacing, tail,
+                       row_filter, free)
 
     def misfit(x: np.ndarray) -> float:
         gain, offset = float(x[0]), float(x[1])
         if not gain > 0.0:
             return math.inf
-        u2 = gain * np.asarray(t2, dtype=float) + offset
         noise = _row_noise(ts, tf, 1, (sigma[0], gain * sigma[1]))
-        dense, weights = _dense_columns(u1, u2, ts, tf, 1, ones)
-        system = knot_system(dense, weights, u2 - u1, spacing, tail, row_filter, free, noise)
+        # g T2 + o - T1 = g (T2 - r) + (o + (g - 1) r) - (T1 - r)
+        system = parts.system([gain, offset + (gain - 1.0) * level, -1.0],
+                              np.array([1.0, gain]), noise)
         try:
             return solve_penalised(system, _STATIC_SEARCH_PENALTY).misfit
         except TrackingError:
