@@ -9,9 +9,10 @@ static column becomes one filtered column ``F(B_k (T2 - T1))`` per knot, the der
 columns stay. The generalised TLS over all columns with a penalty on the first differences of
 a (a random walk of psi), ``min v' (S + lambda R) v / v' C v``, is a sparse generalised
 eigenproblem (banded knot block, a few dense derivative columns; its moments:
-:mod:`dualprobe.estimation.knots`), solved by shift-invert Lanczos. The penalty weight follows the discrepancy principle: the largest lambda whose
-normalised misfit mu stays within the noise band of the best attainable fit, so the tracked
-psi is as smooth as the data allow and exactly constant when the time constants do not vary.
+:mod:`dualprobe.estimation.knots`), solved by shift-invert Lanczos. The penalty weight
+follows the discrepancy principle: the largest lambda whose normalised misfit mu stays within
+the noise band of the best attainable fit, so the tracked psi is as smooth as the data allow
+and exactly constant when the time constants do not vary.
 
 Measured (simulated 30-min drive cycles, 10 Hz, 0.05 K, m = 0.5, ratio 3): the tracked element
 time constants within 5-6 % RMS of the truth, reconstruction 1.15 K against the oracle's 0.87 K
