@@ -34,7 +34,8 @@ class KnotSystem:
     """Moments of the time-knot cross-relation: dense derivative columns first (D), then one
     static column per knot (K). ``band[j, k]`` = S[knot k, knot k + j]; ``cross`` (K, D);
     ``dense`` (D, D); noise: ``noise_dense`` (D, D), ``noise_cross`` (K, D),
-    ``noise_band`` (2, K) (tridiagonal knot block); ``hat`` the knot weights at the samples."""
+    ``noise_band`` (2, K) (tridiagonal knot block); ``projection`` the start-up transients'
+    moments (S_zb (D + K, m), S_bb (m, m)), projected out of S."""
 
     spacing: int
     knots: int
