@@ -7,7 +7,8 @@ smoother's reconstruction) in a child process exactly as a user would, and repor
 the child's wall time, its peak resident memory (``ru_maxrss`` from ``wait4``) and the rows per
 second. The constant-time-constant cases (10 min, 1 h and 6 h at 100 Hz) show the cost's
 growth with length; the flow case (30 min at 10 Hz, time constants following the gas velocity,
-``--flow``) the field path. (The core's streaming rate against memory bandwidth is the
+``--flow``) the field path, and the same without the flow column and with gains 0.97/1.03 the
+tracking with its searched static map. (The core's streaming rate against memory bandwidth is the
 throughput section's.)
 """
 
@@ -44,6 +45,7 @@ class PipelineCase:
     rate: float  # Hz
     exponent: float  # time constants ~ velocity^-exponent (0: constant)
     flow: bool  # pass the flow column with --flow
+    gains: tuple[float, float] = (1.0, 1.0)  # the sensors' static gains
 
 
 PIPELINE_CASES = (
@@ -51,6 +53,9 @@ PIPELINE_CASES = (
     PipelineCase("1 h at 100 Hz", 3600.0, 100.0, 0.0, False),
     PipelineCase("6 h at 100 Hz", 21600.0, 100.0, 0.0, False),
     PipelineCase("30 min at 10 Hz, --flow", 1800.0, 10.0, 0.5, True),
+    # no flow column and unequal gains: tracked time constants with a searched static map
+    PipelineCase("30 min at 10 Hz, tracked, gains 0.97/1.03", 1800.0, 10.0, 0.5, False,
+                 (0.97, 1.03)),
 )
 
 
@@ -58,8 +63,9 @@ def _write_case(case: PipelineCase, path: Path, seed: int) -> int:
     rng = np.random.default_rng(seed)
     conditions = sim.drive_cycle(case.duration, rng)
     rec = sim.simulate_field_pair(
-        conditions, sim.FieldSensor(4.0, case.exponent), sim.FieldSensor(12.0, case.exponent),
-        sample_rate=case.rate, quantisation=0.02, rng=rng)
+        conditions, sim.FieldSensor(4.0, case.exponent, gain=case.gains[0]),
+        sim.FieldSensor(12.0, case.exponent, gain=case.gains[1]), sample_rate=case.rate,
+        quantisation=0.02, rng=rng)
     columns = {"t": rec.t, "T_m1": rec.t1, "T_m2": rec.t2}
     if case.flow:
         columns["flow"] = rec.flow
