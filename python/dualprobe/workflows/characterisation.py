@@ -218,6 +218,9 @@ class Characterisation:
         if self.requested_order is not None and est.order != self.requested_order:
             lines.append(f"  note: order {self.requested_order} requested; the data support "
                          f"order {est.order}")
+        fallback = est.identifiability.get("order_fallback")
+        if fallback:
+            lines.append(f"  note: {fallback}")
         message = est.identifiability.get("message")
         if message:
             lines.append(f"  note: {' '.join(str(message).split())}")

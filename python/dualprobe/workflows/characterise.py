@@ -16,7 +16,7 @@ from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
-from dualprobe.workflows.checks import check_model, refuse_implausible
+from dualprobe.workflows.checks import check_model, refuse_implausible, unsettled_stages
 
 __all__ = [
     "METHODS",
@@ -184,6 +184,26 @@ def characterise_arrays(
         )
         if first.status == "ok":
             estimate = first
+    unsettled = unsettled_stages(estimate) if requested is None else []
+    if unsettled and estimate.status == "ok":
+        # order chosen by evidence, and a model that claims to explain the data: a second
+        # stage that the filter setting moves is model error absorbed by a near-common factor
+        # of the two sensors, not a resolved stage (a misfitting one meets the refusals)
+        first = characterise_pair(
+            t1, t2, ts, method=method, order=1, hysteresis=hysteresis, noise_std=sigma,
+            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
+            uncertainty=uncertainty and svf,
+        )
+        if first.status == "ok":
+            ident = dict(first.identifiability)
+            ident["order_fallback"] = (
+                "order chosen by evidence: first order; the second-order fit's second time "
+                "constant of " + " and of ".join(f"{columns[i]} ({share:.0%})"
+                                                 for i, share in unsettled)
+                + " depends on the filter time constant (standard uncertainty from it alone; "
+                "a resolved stage: under 5 %): model error absorbed by a stage nearly common "
+                "to both sensors, e.g. sheaths that follow the flow with their own exponents")
+            estimate = replace(first, identifiability=ident)
     if estimate.status != "ok":
         raise EstimationError(_failure_message(estimate))
     if requested is None and estimate.identifiability.get("shared_poles") and estimate.order == 1:
