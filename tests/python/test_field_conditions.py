@@ -264,3 +264,29 @@ def test_with_flow_a_second_stage_that_moves_with_the_filter_is_not_kept() -> No
     # not worse than the raw fast sensor (the discarded order-2 model was 1.37 times worse)
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.tg) < 0.6 * _rmse(rec.t1, rec.tg)
+
+
+def test_uncertainty_of_a_sub_model_whose_full_order_2_solution_is_infeasible() -> None:
+    """Orders (1, 2) chosen by evidence while the full (2, 2) solution puts a complex pair on
+    sensor 1 (5 Hz, 0.1 K ADC steps, a sheath on sensor 2 with its own exponent): the
+    uncertainty is the reported sub-model's. It was infinite for every parameter (each
+    replicate took the full solution's infeasibility), with a reason blaming the record."""
+    rng = np.random.default_rng(5105)
+    conditions = sim.drive_cycle(DURATION, rng)
+    s1 = sim.FieldSensor(2.9, 0.62, 0.0, noise_std=0.057)
+    s2 = sim.FieldSensor(2.9 * 3.28, 0.62, 0.44, sheath_exponent=0.43, noise_std=0.057)
+    rec = sim.simulate_field_pair(conditions, s1, s2, sample_rate=5.0, quantisation=0.1,
+                                  rng=rng)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.flow,
+                                 flow_column="flow", reconstruction=None)
+    conf = result.estimate.confidence
+    assert conf is not None
+    assert [len(taus) for taus in result.estimate.time_constants] == [1, 2]
+    for name, std in conf.std.items():
+        assert math.isfinite(std) and std < 0.05 * abs(conf.values[name]) + 0.01, name
+    # the dominant time constants at the reference flow against the truth (sensor 1 at the
+    # median flow: 2.9 s at v_ref = 20, scaled by (v/20)^-0.62)
+    model = result.estimate.flow_model
+    assert model is not None and model.reference_flow is not None
+    truth = 2.9 * (model.reference_flow / 20.0) ** -0.62
+    assert abs(result.estimate.time_constants[0][0] / truth - 1.0) < 0.05

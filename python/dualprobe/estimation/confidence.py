@@ -196,7 +196,12 @@ def confidence(
         value, std = float(base.estimate[i]), float(total[i])
         why = []
         scale = abs(value) if name != "offset" else math.inf  # an offset may be ~0
-        if not math.isfinite(std):
+        if not math.isfinite(std) and base.failed > 0:
+            # the refits without one stretch each fail (the blocks themselves are enough)
+            why.append(f"the fit fails on {base.failed} of {base.blocks} refits that each "
+                       f"leave out {length} rows: it rests on a few stretches of the record or "
+                       "on a model that does not hold (try --order 1, or dualprobe diagnose)")
+        elif not math.isfinite(std):
             why.append(f"the record holds too few independent stretches for an uncertainty "
                        f"({base.blocks} blocks of {length} rows; record longer or with more "
                        "temperature changes)")

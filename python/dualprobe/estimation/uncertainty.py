@@ -157,11 +157,18 @@ def parameters(fit: Any, layout: Layout) -> np.ndarray:
     """The parameter vector of a fit (NaN where it is infeasible), using the sub-model of the
     layout's sensor orders when they are not both the fit's own order."""
     taus = fit.time_constants
+    feasible = fit.status == "ok"
     if fit.order == 2 and layout.orders != (2, 2):
+        # the sub-model's own feasibility: the full order-2 solution may be infeasible (a
+        # complex pair on the sensor the sub-model fits at order 1) while the sub-model the
+        # estimate reports is not (every replicate was NaN so, and the uncertainty infinite)
         try:
-            taus = sensor_order_fits(fit)[layout.orders].time_constants
+            sub = sensor_order_fits(fit)[layout.orders]
+            taus = sub.time_constants
+            feasible = sub.feasible and fit.status in ("ok", "infeasible")
         except (np.linalg.LinAlgError, ValueError):
             taus = ((math.nan,) * layout.orders[0], (math.nan,) * layout.orders[1])
+            feasible = False
     values = [float(t) for i in range(2) for t in taus[i][: layout.orders[i]]]
     if layout.hysteresis:
         heat, cool = fit.heat, fit.cool
@@ -170,4 +177,4 @@ def parameters(fit: Any, layout: Layout) -> np.ndarray:
     if layout.affine:
         values += [fit.gain_ratio, fit.offset]
     out = np.array(values, dtype=float)
-    return out if fit.status == "ok" else np.full(out.size, math.nan)
+    return out if feasible else np.full(out.size, math.nan)
