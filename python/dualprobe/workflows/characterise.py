@@ -167,21 +167,21 @@ def characterise_arrays(
     sigma = _parse_noise_std(noise_std)
     _check_excitation(t1, t2, columns)
     svf = method in ("auto", "svf")
-    estimate = characterise_pair(
-        t1, t2, ts, method=method, order=fit_order, hysteresis=hysteresis, noise_std=sigma,
-        flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
-        uncertainty=uncertainty and svf,
-    )
+
+    def estimate_at(fit_order: int) -> PairEstimate:
+        return characterise_pair(
+            t1, t2, ts, method=method, order=fit_order, hysteresis=hysteresis, noise_std=sigma,
+            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
+            uncertainty=uncertainty and svf,
+        )
+
+    estimate = estimate_at(fit_order)
     if flow is not None and not svf:
         raise InputError(f"--flow needs the SVF method (auto or svf), not {method!r}")
     if requested is None and fit_order == 2 and estimate.status != "ok":
         # order chosen by evidence: data too weak for any second-order model (three or more
         # near-null directions) may still determine a first-order pair, with its uncertainty
-        first = characterise_pair(
-            t1, t2, ts, method=method, order=1, hysteresis=hysteresis, noise_std=sigma,
-            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
-            uncertainty=uncertainty and svf,
-        )
+        first = estimate_at(1)
         if first.status == "ok":
             estimate = first
     unsettled = unsettled_stages(estimate) if requested is None else []
@@ -189,11 +189,7 @@ def characterise_arrays(
         # order chosen by evidence, and a model that claims to explain the data: a second
         # stage that the filter setting moves is model error absorbed by a near-common factor
         # of the two sensors, not a resolved stage (a misfitting one meets the refusals)
-        first = characterise_pair(
-            t1, t2, ts, method=method, order=1, hysteresis=hysteresis, noise_std=sigma,
-            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
-            uncertainty=uncertainty and svf,
-        )
+        first = estimate_at(1)
         if first.status == "ok":
             ident = dict(first.identifiability)
             ident["order_fallback"] = (
