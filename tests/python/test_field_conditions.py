@@ -12,6 +12,7 @@ from the product) is the best linear smoother given the TRUE time-varying dynami
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -131,14 +132,32 @@ def test_without_flow_unequal_gains_are_tracked(case: Case) -> None:
     assert ours <= 2.5 * best, (ours, best)  # the issue's bound without flow
 
 
+def _refused_or_honest(case: Case) -> None:
+    """Refused (exit 3, with what would help), or a gas within the issue's 2.5x of the oracle,
+    or one flagged ``adequate: false``; and never worse than a fifth of the raw fast sensor's
+    error (the sheathed no-flow path gives 0.06-0.18 of it; the absurd numbers these cases once
+    gave with exit 0 were 5-100 times the raw error)."""
+    rec = _record(case)
+    try:
+        result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t,
+                                     reconstruction="smoother")
+    except EstimationError as exc:
+        assert re.search(r"give --flow|longer than a third of the record", str(exc)), exc
+        return
+    assert result.gas_estimate is not None and result.model_check is not None
+    target = case.gains[0] * rec.tg  # the gas as sensor 1 reads it
+    ours = _rmse(result.gas_estimate, target)
+    assert ours <= 0.2 * _rmse(rec.t1, target), ours
+    if ours > 2.5 * _oracle_rmse(rec, case):
+        assert not result.model_check.adequate, ours
+
+
 def test_without_flow_an_unexplained_pair_is_refused_not_absurd() -> None:
-    """Gain-mismatched sheathed sensors that follow the flow, characterised without it: no model
-    the tracker has explains them. The result is refused (exit 3) with what would help, never a
-    number the data do not determine (it was 207 +/- 332 s and a reconstruction 2,500 K off the
-    gas, exit 0)."""
-    rec = _record(CASES[2])
-    with pytest.raises(EstimationError, match=r"give --flow|longer than a third of the record"):
-        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    """Gain-mismatched sheathed sensors that follow the flow, characterised without it. This
+    was 207 +/- 332 s and a reconstruction 2,500 K off the gas with exit 0, then refused; the
+    sheathed path (crossfit + psi_map) now reconstructs it at 3.0x the oracle, 0.18 of the raw
+    sensor's error, with ``adequate: false``."""
+    _refused_or_honest(CASES[2])
 
 
 def test_flow_without_flow_dependence_reports_constant() -> None:
@@ -234,11 +253,10 @@ def test_without_flow_a_varying_pair_is_tracked_not_refused() -> None:
 ], ids=["complex-poles", "shared-factor", "departing-gas"])
 def test_without_flow_a_misfit_constant_order_2_fit_is_refused_not_absurd(case: Case) -> None:
     """Flow-following pairs with one sheathed sensor, characterised without the flow: the
-    constant order-2 fit absorbs the variation in poles no physics allows. Refused (exit 3)
-    with what would help, never a number (each once came out with exit 0)."""
-    rec = _record(case)
-    with pytest.raises(EstimationError, match=r"give --flow"):
-        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    constant order-2 fit absorbs the variation in poles no physics allows (each once came out
+    with exit 0, then was refused). The sheathed path now gives 1.3x, 1.9x and 2.5x the
+    oracle; whatever it gives must be honest (``_refused_or_honest``)."""
+    _refused_or_honest(case)
 
 
 def test_with_flow_a_second_stage_that_moves_with_the_filter_is_not_kept() -> None:

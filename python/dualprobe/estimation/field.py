@@ -18,7 +18,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from dualprobe.estimation import engine, flow, tracking
+from dualprobe.estimation import crossfit, engine, flow, psi_map, tracking
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
@@ -203,17 +203,68 @@ def track_without_flow(
             tracked = result
         if flow.evidence(tracked.misfit, 1.0, n_eff) <= GAP_THRESHOLD:
             break  # explains the data: no need for the affine map
-    if tracked is None:
-        return base, constant
-    statistic = flow.evidence(base_fit.misfit, tracked.misfit, n_eff)
-    stats.update(misfit_tracked=tracked.misfit, tracking_statistic=statistic,
-                 tracking_variation=tracked.variation, knot_spacing=float(tracked.spacing))
-    if not (statistic > GAP_THRESHOLD and tracked.variation > flow.PRACTICAL_CHANGE):
-        return base, FlowModel("constant", np.ones(t1.size), evidence=stats)
-    estimate = run(tracked.psi)
-    if estimate.status != "ok":
-        return base, FlowModel("constant", np.ones(t1.size), evidence=stats)
-    return estimate, FlowModel("tracked", tracked.psi, evidence=stats, tracking=tracked)
+    chosen: tuple[PairEstimate, FlowModel] = (base, constant)
+    if tracked is not None:
+        statistic = flow.evidence(base_fit.misfit, tracked.misfit, n_eff)
+        stats.update(misfit_tracked=tracked.misfit, tracking_statistic=statistic,
+                     tracking_variation=tracked.variation, knot_spacing=float(tracked.spacing))
+        chosen = (base, FlowModel("constant", np.ones(t1.size), evidence=stats))
+        if statistic > GAP_THRESHOLD and tracked.variation > flow.PRACTICAL_CHANGE:
+            estimate = run(tracked.psi)
+            if estimate.status == "ok":
+                chosen = (estimate, FlowModel("tracked", tracked.psi, evidence=stats,
+                                              tracking=tracked))
+    if _fit_of(chosen[0]).misfit <= _TRACKING_MISFIT:
+        return chosen
+    return _sheathed(t1, t2, base, chosen, run, stats)
+
+
+def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
+              chosen: tuple[PairEstimate, FlowModel], run: RunSvf, stats: dict[str, float],
+              ) -> tuple[PairEstimate, FlowModel]:
+    """Second-order pairs (sheaths) that the first-order tracking leaves misfitting: psi from
+    the joint cross-relation fit (:mod:`dualprobe.estimation.crossfit`) refined by the joint
+    MAP (:mod:`dualprobe.estimation.psi_map`), then the engine's fit on that schedule; kept
+    only when it fits better than what the first-order tracking gave."""
+    fit = _fit_of(base)
+    if t1.size > _SHEATHED_MAX_ROWS:
+        return chosen
+    taus = base.time_constants
+    static = (fit.gain_ratio, fit.offset) if fit.static == "affine" else (1.0, 0.0)
+    try:
+        cross = crossfit.fit_cross_relation(t1, t2, fit.ts, fit.tf, (taus[0][0], taus[1][0]),
+                                            static)
+        stages = [tuple(s for s in pair[::-1] if s > _SHEATH_FLOOR * pair[0])
+                  for pair in cross.stages]
+        gain, offset = cross.static
+        q = _gas_intensity(t1, fit, taus[0][0])
+        spacing = max(1, round(fit.tf / fit.ts))
+        refined = psi_map.map_psi(np.arange(t1.size) * fit.ts, t1, t2, stages[0], stages[1],
+                                  (1.0 / gain, -offset / gain), fit.sigma, q, spacing,
+                                  _PSI_STEP)
+    except (ValueError, np.linalg.LinAlgError, RuntimeError):
+        return chosen
+    psi = refined.psi / math.exp(float(np.mean(np.log(refined.psi))))
+    if not np.all(np.isfinite(psi)):
+        return chosen
+    estimate = run(psi)
+    if estimate.status != "ok" or _fit_of(estimate).misfit >= _fit_of(chosen[0]).misfit:
+        return chosen
+    stats = {**stats, "misfit_tracked": _fit_of(estimate).misfit,
+             "knot_spacing": float(spacing)}
+    return estimate, FlowModel("tracked", psi, evidence=stats)
+
+
+def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
+    """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`, from the
+    first-order inverse of sensor 1 through the SVF (its noise kept down by the filter).
+    Generous on purpose: ten times the oracle's q left the gas unchanged (1.25x on a drive
+    cycle), a tenth of it made it worse (1.25x -> 1.43x)."""
+    from dualprobe import _core
+
+    out = _core.svf_filter(t1 - t1[0], fit.ts, fit.tf, 2, "foh")[0]
+    gas = out[0] + tau * out[1] / fit.tf
+    return max(_GAS_SAFETY * float(np.mean(np.diff(gas) ** 2)) / fit.ts, 1e-6)
 
 
 # A constant model that misfits by less than this (its residual within twice the noise) is a
@@ -222,6 +273,13 @@ def track_without_flow(
 # 1.5-2.0, and a free psi "explained" it (4 of 30 records tracked, their uncertainties 20-115
 # standard deviations off); time constants that follow the flow misfit by 30-15 000.
 _TRACKING_MISFIT = 4.0
+
+# The sheathed path (_sheathed): its joint MAP solves a sparse system of 5 states per row
+# (5 s and ~1 GB at 18 000 rows); longer records keep the first-order tracking's result.
+_SHEATHED_MAX_ROWS = 60_000
+_SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
+_PSI_STEP = 0.05  # prior sd of log psi from knot to knot (one knot per tf)
+_GAS_SAFETY = 4.0  # see _gas_intensity
 
 _STATIC_WINDOW = 240.0  # s: constant fits of half-overlapping windows for the static map's start
 

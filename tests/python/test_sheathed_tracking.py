@@ -1,0 +1,64 @@
+"""Sheathed pairs without a flow signal (issue 11): the joint cross-relation fit
+(dualprobe.estimation.crossfit), psi refined by the joint MAP (dualprobe.estimation.psi_map),
+against the oracle that knows the true time-varying sensors (tests/python/field_oracle.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dualprobe.estimation.psi_map import map_psi
+from dualprobe.workflows.characterise import characterise_arrays
+from field_oracle import oracle
+from test_field_conditions import NOISE, Case, _oracle_rmse, _record, _rmse
+
+SHEATHED = [
+    Case(0.32, 3.28, (0.7, 0.0), (1.0, 1.0), 205),  # sheath on the fast sensor: 1.32x measured
+    Case(0.58, 2.78, (0.19, 0.61), (1.023, 1.026), 104),  # both sheathed, gains: 2.30x measured
+]
+
+
+@pytest.mark.parametrize("case", SHEATHED, ids=["fast-sheathed", "both-sheathed-gains"])
+def test_without_flow_sheathed_pairs_reach_2_5x_the_oracle(case: Case) -> None:
+    """Before the sheathed path these were refused (exit 3) or warned at 5-12x."""
+    rec = _record(case)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "tracked"
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, case.gains[0] * rec.tg)  # the gas as sensor 1 reads it
+    assert ours <= 2.5 * _oracle_rmse(rec, case), ours  # the issue's bound without flow
+    # the sheath found where there is one (within 20 %: 0.645-0.758 s measured for 0.7 s;
+    # 0.14 for 0.19 s is weakly seen behind a 5 s element, so only the larger is checked)
+    psi = 1.0 / rec.tau1
+    psi /= np.exp(np.mean(np.log(psi)))
+    for i, sheath in enumerate((rec.sheath1, rec.sheath2)):
+        taus = result.estimate.time_constants[i]
+        truth = float(np.median(sheath * psi))
+        if truth >= 0.5:
+            assert len(taus) == 2 and taus[1] == pytest.approx(truth, rel=0.2), (taus, truth)
+
+
+def test_map_psi_given_the_true_stages_reaches_the_oracle() -> None:
+    """Given the true stage time constants, the MAP schedule is good enough for the oracle's
+    own smoother to come within 1.5x of what the true schedule gives (1.23x measured; psi's
+    error is where the gas does not move, where it does not matter)."""
+    case = SHEATHED[1]
+    rec = _record(case)
+    target = case.gains[0] * rec.tg
+    psi_true = 1.0 / rec.tau1
+    psi_true /= np.exp(np.mean(np.log(psi_true)))
+    stages = [[float(np.median(s * psi_true)), float(np.median(e * psi_true))]
+              for s, e in ((rec.sheath1, rec.tau1), (rec.sheath2, rec.tau2))]
+    sheathed = [None if np.all(s == 0) else s for s in (rec.sheath1, rec.sheath2)]
+    best = oracle(rec.t, rec.t1, rec.t2, target, rec.tau1, rec.tau2, (NOISE, NOISE),
+                  sheath1=sheathed[0], sheath2=sheathed[1], static1=(1.0, 0.0),
+                  static2=(case.gains[1] / case.gains[0], 0.0), gases=("rw",))
+    found = map_psi(rec.t, rec.t1, rec.t2, stages[0], stages[1], (1.0, 0.0), (NOISE, NOISE),
+                    best.q, 10, 0.05)
+    assert found.static[0] == pytest.approx(case.gains[1] / case.gains[0], abs=1e-3)
+    ours = oracle(rec.t, rec.t1, rec.t2, target, stages[0][1] / found.psi,
+                  stages[1][1] / found.psi, (NOISE, NOISE), sheath1=stages[0][0] / found.psi,
+                  sheath2=stages[1][0] / found.psi, static1=(1.0, 0.0), static2=found.static,
+                  gases=("rw",))
+    assert ours.rmse <= 1.5 * best.rmse, (ours.rmse, best.rmse)
