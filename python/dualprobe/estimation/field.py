@@ -247,11 +247,20 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     psi = refined.psi / math.exp(float(np.mean(np.log(refined.psi))))
     if not np.all(np.isfinite(psi)):
         return chosen
-    estimate = run(psi)
-    if estimate.status != "ok" or _fit_of(estimate).misfit >= _fit_of(chosen[0]).misfit:
+    lo, hi = np.quantile(psi, [0.05, 0.95])
+    if not hi / lo - 1.0 > flow.PRACTICAL_CHANGE:
         return chosen
-    stats = {**stats, "misfit_tracked": _fit_of(estimate).misfit,
-             "knot_spacing": float(spacing)}
+    estimate = run(psi)
+    if estimate.status != "ok":
+        return chosen
+    # the same evidence the first-order tracking needs: significantly better than what it had
+    statistic = flow.evidence(_fit_of(chosen[0]).misfit, _fit_of(estimate).misfit,
+                              _effective_rows(base))
+    if not statistic > GAP_THRESHOLD:
+        return chosen
+    stats = {**stats, "misfit_tracked": _fit_of(estimate).misfit, "tracking_statistic": statistic,
+             "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(spacing),
+             "sheathed_path": 1.0}
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 
@@ -274,8 +283,9 @@ def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
 # standard deviations off); time constants that follow the flow misfit by 30-15 000.
 _TRACKING_MISFIT = 4.0
 
-# The sheathed path (_sheathed): its joint MAP solves a sparse system of 5 states per row
-# (5 s and ~1 GB at 18 000 rows); longer records keep the first-order tracking's result.
+# The sheathed path (_sheathed): its joint MAP solves a sparse system of up to 5 states per row
+# (a 30 min, 10 Hz record: 18 000 rows, 3-6 s; the whole characterisation 15-28 s and 281 MB
+# peak); it grows about linearly, so longer records keep the first-order tracking's result.
 _SHEATHED_MAX_ROWS = 60_000
 _SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
 _PSI_STEP = 0.05  # prior sd of log psi from knot to knot (one knot per tf)
