@@ -265,10 +265,13 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
 
 
 def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
-    """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`, from the
-    first-order inverse of sensor 1 through the SVF (its noise kept down by the filter).
-    Generous on purpose: ten times the oracle's q left the gas unchanged (1.25x on a drive
-    cycle), a tenth of it made it worse (1.25x -> 1.43x)."""
+    """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`: ``_GAS_SAFETY``
+    times the increments of sensor 1's first-order inverse through the SVF (about 0.7 of the
+    oracle's q on drive cycles). Given the TRUE stages a weaker prior is better (1.23x, 3.01x,
+    1.59x the oracle with the oracle's q; 1.11x, 2.27x, 1.33x with 100 times it), but with the
+    estimated stages psi then absorbs their errors (a drive cycle at 2.30x went to 3.32x with
+    100 times), so the factor stays at 4 (the sweeps in the README); a tenth of the oracle's q
+    was worse in both (1.25x -> 1.43x)."""
     from dualprobe import _core
 
     out = _core.svf_filter(t1 - t1[0], fit.ts, fit.tf, 2, "foh")[0]

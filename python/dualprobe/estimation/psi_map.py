@@ -200,7 +200,8 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     """The MAP schedule (module docstring). ``stages_i``: stage time constants at psi = 1, the
     stage that sees the gas first; ``static`` the start of y2 = gain x + offset; ``q`` the gas
     random walk's intensity (K^2/s); ``spacing`` rows between knots; ``step_std`` the prior
-    standard deviation of log psi from knot to knot. psi starts at 1."""
+    standard deviation of log psi from knot to knot. psi starts at 1 (starting at the true psi
+    gave the same optimum on a drive cycle: the start does not matter there)."""
     problem = _Problem(np.asarray(t, float), (np.asarray(y1, float), np.asarray(y2, float)),
                        (np.asarray(stages1, float), np.asarray(stages2, float)), sigma, q,
                        spacing, step_std)

@@ -8,8 +8,8 @@ the child's wall time, its peak resident memory (``ru_maxrss`` from ``wait4``) a
 second. The constant-time-constant cases (10 min, 1 h and 6 h at 100 Hz) show the cost's
 growth with length; the flow case (30 min at 10 Hz, time constants following the gas velocity,
 ``--flow``) the field path, and the same without the flow column and with gains 0.97/1.03 the
-tracking with its searched static map. (The core's streaming rate against memory bandwidth is the
-throughput section's.)
+tracking with its searched static map, or with a sheathed fast sensor the sheathed path. (The
+core's streaming rate against memory bandwidth is the throughput section's.)
 """
 
 from __future__ import annotations
@@ -46,6 +46,7 @@ class PipelineCase:
     exponent: float  # time constants ~ velocity^-exponent (0: constant)
     flow: bool  # pass the flow column with --flow
     gains: tuple[float, float] = (1.0, 1.0)  # the sensors' static gains
+    sheaths: tuple[float, float] = (0.0, 0.0)  # sheath time constants at the reference flow
 
 
 PIPELINE_CASES = (
@@ -56,6 +57,9 @@ PIPELINE_CASES = (
     # no flow column and unequal gains: tracked time constants with a searched static map
     PipelineCase("30 min at 10 Hz, tracked, gains 0.97/1.03", 1800.0, 10.0, 0.5, False,
                  (0.97, 1.03)),
+    # no flow column, a sheathed fast sensor: the sheathed path (crossfit + psi_map)
+    PipelineCase("30 min at 10 Hz, tracked, sheath 0.7 s", 1800.0, 10.0, 0.5, False,
+                 sheaths=(0.7, 0.0)),
 )
 
 
@@ -63,8 +67,10 @@ def _write_case(case: PipelineCase, path: Path, seed: int) -> int:
     rng = np.random.default_rng(seed)
     conditions = sim.drive_cycle(case.duration, rng)
     rec = sim.simulate_field_pair(
-        conditions, sim.FieldSensor(4.0, case.exponent, gain=case.gains[0]),
-        sim.FieldSensor(12.0, case.exponent, gain=case.gains[1]), sample_rate=case.rate,
+        conditions,
+        sim.FieldSensor(4.0, case.exponent, case.sheaths[0], gain=case.gains[0]),
+        sim.FieldSensor(12.0, case.exponent, case.sheaths[1], gain=case.gains[1]),
+        sample_rate=case.rate,
         quantisation=0.02, rng=rng)
     columns = {"t": rec.t, "T_m1": rec.t1, "T_m2": rec.t2}
     if case.flow:
