@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.psi_map import map_psi
 from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle
@@ -62,3 +63,21 @@ def test_map_psi_given_the_true_stages_reaches_the_oracle() -> None:
                   sheath2=stages[1][0] / found.psi, static1=(1.0, 0.0), static2=found.static,
                   gases=("rw",))
     assert ours.rmse <= 1.5 * best.rmse, (ours.rmse, best.rmse)
+
+
+def test_damped_search_grows_the_damping_until_the_cost_falls() -> None:
+    """The shared Levenberg search: an unsolvable system (None) or a higher cost grows the
+    damping tenfold; the first lower cost is taken with the damping that gave it."""
+    tried: list[float] = []
+
+    def attempt(damping: float) -> tuple[str, float] | None:
+        tried.append(damping)
+        if damping < 1e-2:
+            return None
+        return ("state", 5.0 if damping < 1.0 else 2.0)
+
+    state, cost, damping = damped_search(attempt, 3.0, 1e-3, 10)
+    assert (state, cost, damping) == ("state", 2.0, pytest.approx(1.0))
+    assert tried == pytest.approx([1e-3, 1e-2, 1e-1, 1.0])
+    state, cost, damping = damped_search(attempt, 1.0, 1e-3, 3)  # never below 1.0
+    assert state is None and cost == 1.0 and damping == pytest.approx(1.0)

@@ -29,6 +29,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.knots import knot_layout
 
 __all__ = ["CrossFit", "fit_cross_relation"]
@@ -159,24 +160,23 @@ def _levenberg(cols: _Columns, p: np.ndarray, weights: np.ndarray, penalty: floa
         grad = np.concatenate([wd.T @ r, knots.T @ (weights * r) + penalty * (rough @ z)
                                + stiff * mean * (mean @ z)])
         diag = np.maximum(np.diag(h).copy(), 1e-12)
-        improved = False
-        for _ in range(12):
+
+        def attempt(damp: float, p: np.ndarray = p, h: np.ndarray = h,
+                    grad: np.ndarray = grad, diag: np.ndarray = diag,
+                    ) -> tuple[np.ndarray, float] | None:
             try:
-                step = -scipy.linalg.solve(h + damping * np.diag(diag), grad, assume_a="sym")
+                step = -scipy.linalg.solve(h + damp * np.diag(diag), grad, assume_a="sym")
             except (np.linalg.LinAlgError, ValueError):
-                damping *= 10.0
-                continue
+                return None
             trial = p + step
             trial[6:] = np.clip(trial[6:], -_Z_LIMIT, _Z_LIMIT)
-            f_trial = cost(trial)
-            if math.isfinite(f_trial) and f_trial < f:
-                improved = True
-                break
-            damping *= 10.0
-        if not improved:
+            return trial, cost(trial)
+
+        accepted, f_trial, damping = damped_search(attempt, f, damping, 12)
+        if accepted is None:
             break
         gain = (f - f_trial) / f
-        p, f = trial, f_trial
+        p, f = accepted, f_trial
         damping = max(damping / 5.0, 1e-9)
         if gain < 1e-7:
             break

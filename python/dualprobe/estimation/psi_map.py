@@ -26,6 +26,7 @@ drifts (both sheaths shrank 30 % below the truth while the cost kept falling, ga
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -33,6 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
+
+from dualprobe.estimation.damping import damped_search
 
 __all__ = ["PsiMap", "map_psi"]
 
@@ -194,6 +197,20 @@ def _damped_step(a: sp.csc_matrix, b: np.ndarray, grad: np.ndarray, damping: flo
     return np.concatenate([base - z @ tail, tail])
 
 
+def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
+           normal: sp.csc_matrix, coupling: np.ndarray, grad: np.ndarray, damping: float,
+           ) -> tuple[tuple[np.ndarray, ...], float]:
+    """One damped step from ``state`` (states, log psi knots, static map), the states then
+    re-solved for the new psi: the new (state, residuals, Jacobians) and its cost."""
+    x, z, mapping = state
+    step = _damped_step(normal, coupling, grad, damping, normal.shape[0], x.size)
+    z_new = z + step[x.size:x.size + problem.knots]
+    map_new = mapping + step[x.size + problem.knots:]
+    x_new = problem.states_for(z_new, map_new, x + step[:x.size])
+    res, a_x, a_z, a_s = problem.system(x_new, z_new, map_new)
+    return (x_new, z_new, map_new, res, a_x, a_z, a_s), float(res @ res)
+
+
 def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[float],
             stages2: Sequence[float], static: tuple[float, float], sigma: tuple[float, float],
             q: float, spacing: int, step_std: float, iterations: int = 30) -> PsiMap:
@@ -218,23 +235,13 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
         normal = (sparse.T @ sparse).tocsc()
         coupling = np.vstack([sparse.T @ a_s, a_s.T @ a_s])
         grad = np.concatenate([sparse.T @ res, a_s.T @ res])
-        accepted = False
-        for _ in range(10):
-            step = _damped_step(normal, coupling, grad, damping, sparse.shape[1], x.size)
-            z_new = z + step[x.size:x.size + problem.knots]
-            map_new = mapping + step[x.size + problem.knots:]
-            x_new = problem.states_for(z_new, map_new, x + step[:x.size])
-            res_new, ax_new, az_new, as_new = problem.system(x_new, z_new, map_new)
-            cost_new = float(res_new @ res_new)
-            if math.isfinite(cost_new) and cost_new < cost:
-                accepted = True
-                break
-            damping *= 10.0
-        if not accepted:
+        attempt = functools.partial(_trial, problem, (x, z, mapping), normal, coupling, grad)
+        accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
+        if accepted is None:
             break
         gain = (cost - cost_new) / cost
-        x, z, mapping, res, a_x, a_z, a_s, cost = (x_new, z_new, map_new, res_new, ax_new,
-                                                   az_new, as_new, cost_new)
+        x, z, mapping, res, a_x, a_z, a_s = accepted
+        cost = cost_new
         damping = max(damping / 10.0, 1e-9)
         if gain < 1e-7:
             break
