@@ -223,14 +223,15 @@ def _inverse_hessian(batch: Callable[[np.ndarray], np.ndarray], u: np.ndarray,
     (every point in one batch; None if not positive definite)."""
     n = u.size
     h = _HESSIAN_STEP
-    points = [u]
+    steps = np.eye(n) * h
+    points = []
     for i in range(n):
         for j in range(i, n):
-            ei, ej = np.eye(n)[i] * h, np.eye(n)[j] * h
+            ei, ej = steps[i], steps[j]
             points += [u + ei + ej, u + ei - ej, u - ei + ej, u - ei - ej]
     values = batch(np.vstack(points))
     hess = np.zeros((n, n))
-    at = 1
+    at = 0
     for i in range(n):
         for j in range(i, n):
             pp, pm, mp, mm = values[at:at + 4]
