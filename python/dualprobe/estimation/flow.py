@@ -59,10 +59,13 @@ class FlowSignal:
     values: np.ndarray
     column: str | None
     reference: float
+    factor: np.ndarray | None = None  # a fixed factor per row (the gas level's, field._level)
 
     def psi(self, exponent: float) -> np.ndarray:
-        """The schedule ``(v / v_ref)^m`` (time constants scale as its inverse)."""
-        return (self.values / self.reference) ** exponent
+        """The schedule ``(v / v_ref)^m`` (time constants scale as its inverse), times
+        ``factor`` when there is one."""
+        law = (self.values / self.reference) ** exponent
+        return law if self.factor is None else law * self.factor
 
     @property
     def span(self) -> tuple[float, float]:

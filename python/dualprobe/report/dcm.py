@@ -11,7 +11,10 @@ Written from the characterisation's JSON document (``Characterisation.to_json_di
   geometric grid over ``flow_model.flow_range`` (default v_ref/4 to 4 v_ref);
 * otherwise a ``FESTWERT <name>`` per sensor with its dominant time constant;
 * a second stage (order 2) as ``FESTWERT <name>_2``; heating / cooling time constants
-  (hysteresis) as ``FESTWERT <name>_HEAT`` / ``<name>_COOL``.
+  (hysteresis) as ``FESTWERT <name>_HEAT`` / ``<name>_COOL``;
+* a gas-level term of the flow law (``flow_model.level_reference`` given): ``FESTWERT
+  <name>_LEVEL`` (b, per unit of the temperature columns) and ``<name>_LEVEL_REF`` (the level
+  the curve holds at): tau(flow, T) = curve(flow) exp(b (T - T_ref)).
 
 Every entry has ``LANGNAME`` (what it is, which column), ``EINHEIT_W "s"`` and for curves
 ``EINHEIT_X`` (the flow unit, ``"-"`` when unknown). Names are configurable (one per sensor).
@@ -63,11 +66,11 @@ def _finite(values: Sequence[Any], what: str) -> list[float]:
     return out
 
 
-def _festwert(name: str, langname: str, value: float) -> list[str]:
+def _festwert(name: str, langname: str, value: float, unit: str = "s") -> list[str]:
     return [
         f"FESTWERT {name}",
         f'   LANGNAME "{_text(langname)}"',
-        '   EINHEIT_W "s"',
+        f'   EINHEIT_W "{_text(unit)}"',
         *_rows("WERT", [value]),
         "END",
     ]
@@ -170,6 +173,16 @@ def dcm_text(
         lines.append("")
         if len(taus) > 1:
             lines += _festwert(f"{name}_2", f"Second time constant of {what}", taus[1])
+            lines.append("")
+        if isinstance(model, Mapping) and model.get("level_reference") is not None:
+            # tau(flow, T) = curve(flow) * exp(LEVEL * (T - LEVEL_REF)): the gas-level term
+            level, reference = _finite([model.get("level_sensitivity"),
+                                        model.get("level_reference")], "the level term")
+            lines += _festwert(f"{name}_LEVEL", f"Log change of {what}'s time constants per "
+                               "unit of gas temperature", level, "1/T")
+            lines.append("")
+            lines += _festwert(f"{name}_LEVEL_REF", f"Gas temperature of {what}'s curve",
+                               reference, "T")
             lines.append("")
         for key, label in (("time_constants_heat", "HEAT"), ("time_constants_cool", "COOL")):
             if sensor.get(key):
