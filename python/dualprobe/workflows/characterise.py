@@ -16,7 +16,12 @@ from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
-from dualprobe.workflows.checks import check_model, refuse_implausible, unsettled_stages
+from dualprobe.workflows.checks import (
+    check_model,
+    refuse_implausible,
+    spurious_shared_stage,
+    unsettled_stages,
+)
 
 __all__ = [
     "METHODS",
@@ -185,20 +190,28 @@ def characterise_arrays(
         if first.status == "ok":
             estimate = first
     unsettled = unsettled_stages(estimate) if requested is None else []
-    if unsettled and estimate.status == "ok":
-        # order chosen by evidence, and a model that claims to explain the data: a second
-        # stage that the filter setting moves is model error absorbed by a near-common factor
-        # of the two sensors, not a resolved stage (a misfitting one meets the refusals)
+    shared = spurious_shared_stage(estimate) if requested is None else None
+    if (unsettled or shared) and estimate.status == "ok":
+        # order chosen by evidence: a second stage that the filter setting moves (in a model
+        # that claims to explain the data), or one shared by both sensors (misfitting or not
+        # determined), is model error absorbed by a (near-)common factor of the two sensors,
+        # not a resolved stage; first order, and its checks, instead
         first = estimate_at(1)
         if first.status == "ok":
             ident = dict(first.identifiability)
+            if unsettled:
+                why = ("the second-order fit's second time constant of "
+                       + " and of ".join(f"{columns[i]} ({share:.0%})" for i, share in unsettled)
+                       + " depends on the filter time constant (standard uncertainty from it "
+                       "alone; a resolved stage: under 5 %)")
+            else:
+                assert shared is not None
+                why = (f"the second-order fit gave both sensors a time constant of about "
+                       f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine")
             ident["order_fallback"] = (
-                "order chosen by evidence: first order; the second-order fit's second time "
-                "constant of " + " and of ".join(f"{columns[i]} ({share:.0%})"
-                                                 for i, share in unsettled)
-                + " depends on the filter time constant (standard uncertainty from it alone; "
-                "a resolved stage: under 5 %): model error absorbed by a stage nearly common "
-                "to both sensors, e.g. sheaths that follow the flow with their own exponents")
+                "order chosen by evidence: first order; " + why + ": model error absorbed by a "
+                "stage nearly common to both sensors, e.g. sheaths that follow the flow with "
+                "their own exponents, or time constants that also follow the gas temperature")
             estimate = replace(first, identifiability=ident)
     if estimate.status != "ok":
         raise EstimationError(_failure_message(estimate))

@@ -1,0 +1,80 @@
+"""Issue 11 on recordings from a generator written apart from the product
+(tests/python/field_independent.py: own drive trace, gas and exhaust, RK4 sensors that follow
+the gas VELOCITY while the recording offers the MASS flow), against the oracle that knows the
+true time-varying sensors (tests/python/field_oracle.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from dualprobe.workflows.characterisation import Characterisation
+from dualprobe.workflows.characterise import characterise_arrays
+from field_independent import Recording, record
+from field_oracle import oracle
+
+
+def _oracle_rmse(rec: Recording) -> float:
+    sheaths = [s if np.any(s > 0) else None for s in (rec.sheath1, rec.sheath2)]
+    return oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
+                  sheath1=sheaths[0], sheath2=sheaths[1], gases=("rw",)).rmse
+
+
+def _rmse(x: np.ndarray, y: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((x - y) ** 2)))
+
+
+def _tau_errors(result: Characterisation, rec: Recording) -> list[float]:
+    tau1, tau2 = result.time_constants_per_row()
+    return [float(np.sqrt(np.mean((est / truth - 1.0) ** 2)))
+            for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2))]
+
+
+def test_mass_flow_column_meets_the_issue_bounds() -> None:
+    """10 Hz, tau 4 / 12 s, m 0.5 on the velocity: with the mass flow the power law alone left
+    21.7 times the noise; the level term takes it to 3.1 (per-row tau 2.2 -> 0.7 %). The
+    remaining misfit is reported, not hidden."""
+    rec = record(1)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law"
+    assert model.level_reference is not None and model.level_sensitivity < 0.0
+    # issue 11: per-row time constants within 5 % RMS, the gas within 1.5x the oracle and 15 %
+    # of the raw fast sensor (measured 0.7 %, 1.05x, 6 %)
+    assert max(_tau_errors(result, rec)) < 0.05
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, rec.gas)
+    assert ours <= 1.5 * _oracle_rmse(rec)
+    assert ours <= 0.15 * _rmse(rec.t1, rec.gas)
+    assert result.model_check is not None
+    if not result.model_check.adequate:
+        assert result.model_check.reasons  # a misfit is said, with why
+
+
+def test_without_flow_meets_the_issue_bound() -> None:
+    """The same recording without the flow column: tracked, within 2.5x the oracle (1.30x)."""
+    rec = record(1)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "tracked"
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * _oracle_rmse(rec)
+
+
+@pytest.mark.parametrize("seed,duration", [(12, 1200.0), (6, 600.0)])
+def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(seed: int,
+                                                                   duration: float) -> None:
+    """50 Hz, tau 2 / 8 s, m 0.35, 0.1 K noise, the mass flow as the column: order 2 gave both
+    sensors a common slow "stage" that absorbed the missing level term. Seed 12: 276 / 275 s,
+    the model "adequate" and the gas 2,081 K RMS off with exit 0; seed 6 (600 s): 52.6 / 44 s,
+    misfit, refused. Of seeds 1-12, 7 were refused and 1 absurd; first order, which a pair can
+    determine, gave 0.86-0.97 K for all 12 (raw fast sensor about 11 K)."""
+    rec = record(seed, duration=duration, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    assert [len(t) for t in result.estimate.time_constants] == [1, 1]
+    assert "order_fallback" in result.estimate.identifiability
+    assert max(_tau_errors(result, rec)) < 0.05
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
