@@ -20,6 +20,7 @@ from dualprobe.workflows.checks import (
     check_model,
     refuse_implausible,
     spurious_shared_stage,
+    undetermined_gain,
     unsettled_stages,
 )
 
@@ -191,7 +192,8 @@ def characterise_arrays(
             estimate = first
     unsettled = unsettled_stages(estimate) if requested is None else []
     shared = spurious_shared_stage(estimate) if requested is None else None
-    if (unsettled or shared) and estimate.status == "ok":
+    gain = undetermined_gain(estimate) if requested is None else None
+    if (unsettled or shared or gain is not None) and estimate.status == "ok":
         # order chosen by evidence: a second stage that the filter setting moves (in a model
         # that claims to explain the data), or one shared by both sensors (misfitting or not
         # determined), is model error absorbed by a (near-)common factor of the two sensors,
@@ -199,19 +201,22 @@ def characterise_arrays(
         first = estimate_at(1)
         if first.status == "ok":
             ident = dict(first.identifiability)
+            common = (": model error absorbed by a stage nearly common to both sensors, e.g. "
+                      "sheaths that follow the flow with their own exponents, or time "
+                      "constants that also follow the gas temperature")
             if unsettled:
                 why = ("the second-order fit's second time constant of "
                        + " and of ".join(f"{columns[i]} ({share:.0%})" for i, share in unsettled)
                        + " depends on the filter time constant (standard uncertainty from it "
-                       "alone; a resolved stage: under 5 %)")
-            else:
-                assert shared is not None
+                       "alone; a resolved stage: under 5 %)" + common)
+            elif shared is not None:
                 why = (f"the second-order fit gave both sensors a time constant of about "
-                       f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine")
-            ident["order_fallback"] = (
-                "order chosen by evidence: first order; " + why + ": model error absorbed by a "
-                "stage nearly common to both sensors, e.g. sheaths that follow the flow with "
-                "their own exponents, or time constants that also follow the gas temperature")
+                       f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine"
+                       + common)
+            else:
+                why = (f"the second-order fit's gain ratio ({gain:.3g}) is not determined by "
+                       "the data: its second stages and static map trade against each other")
+            ident["order_fallback"] = "order chosen by evidence: first order; " + why
             estimate = replace(first, identifiability=ident)
     if estimate.status != "ok":
         raise EstimationError(_failure_message(estimate))

@@ -44,7 +44,8 @@ from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
 
 __all__ = ["MISFIT_LIMIT", "ModelCheck", "check_model", "refuse_implausible",
-           "spurious_shared_stage", "unsettled_stages"]
+           "spurious_shared_stage",
+           "undetermined_gain", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
@@ -193,6 +194,23 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
         if not std <= RELATIVE_LIMIT * abs(value):  # reported not identifiable
             return shared
     return None
+
+
+def undetermined_gain(estimate: PairEstimate) -> float | None:
+    """The gain ratio of an order-2 estimate with the affine static model when its standard
+    uncertainty exceeds ``RELATIVE_LIMIT`` of it (None otherwise). The reconstruction rests on
+    that map: on a 5 Hz pair with gains 0.97 / 1.009 whose slow sensor's logger held every
+    reading for two rows (a stage of about 0.17 s to the model), order 2 gave a gain ratio of
+    1.92 +- 22.9 and an offset of -535 K, the model "adequate" and the gas 27 K RMS off (the
+    raw fast sensor 16 K) with exit 0; the first-order pair determines the gain."""
+    conf = estimate.confidence
+    if conf is None or estimate.order != 2:
+        return None
+    value = conf.values.get("gain_ratio")
+    std = conf.std.get("gain_ratio", math.nan)
+    if value is None or std <= RELATIVE_LIMIT * abs(value):
+        return None
+    return float(value)
 
 
 def _advice(estimate: PairEstimate) -> str:
