@@ -249,7 +249,8 @@ def characterise_arrays(
     if static is not None:
         levels = (levels[0], abs(static[0]) * levels[1])
     # the paper's method has no misfit statistic of its own: its residuals are checked
-    check = check_model(estimate, residuals, levels) if svf or residuals is not None else None
+    check = (check_model(estimate, residuals, levels, (t1, t2), columns)
+             if svf or residuals is not None else None)
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts
     return Characterisation(

@@ -6,7 +6,8 @@ explains; beyond ``GAP_THRESHOLD`` standard deviations of its noise-only spread 
 misses something (the two sensors' filtered reconstructions of the gas disagree by more than
 their noise: the cross-relation *is* that difference). And, when the gas temperature was
 reconstructed, each sensor's residual against the smoother's model: its RMS in units of the
-sensor's noise (``MISFIT_LIMIT``: above 2 the residual is structured, not noise).
+sensor's noise (``MISFIT_LIMIT``: above 2 the residual is structured, not noise). And the
+readings themselves: a logger that holds them (``held_share``) adds a delay no model here has.
 
 Implausible results are refused (exit 3) with what and why, in terms a test engineer can act
 on: a time constant longer than a third of the record (the record cannot determine it), a
@@ -43,9 +44,8 @@ from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
 
-__all__ = ["MISFIT_LIMIT", "ModelCheck", "check_model", "refuse_implausible",
-           "spurious_shared_stage",
-           "undetermined_gain", "unsettled_stages"]
+__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "held_share",
+           "refuse_implausible", "spurious_shared_stage", "undetermined_gain", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
@@ -59,6 +59,10 @@ SHARED_FACTOR = 0.2
 # departed 6.7 times (for 1.8 allowed) was 90 K off the truth. Three times covers the measured
 # spread with margin.
 LAG_MARGIN = 3.0
+# Held readings: above this share of exact repeats among the moving rows. A hold of k rows
+# repeats (k-1)/k of them (50 % for two); ADC steps with noise, none (0 % on drive cycles with
+# 0.02-0.1 K steps at 2-50 Hz).
+HELD_SHARE = 0.1
 
 
 def _shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
@@ -113,13 +117,42 @@ def _misfit(estimate: PairEstimate) -> tuple[float, float]:
     return mu, statistic
 
 
+def held_share(x: np.ndarray) -> float:
+    """Share of the moving rows whose reading repeats the previous one exactly: a logger that
+    holds readings (refreshes slower than the rows). Moving rows: the change over two rows is
+    in the upper half of the record's and above 4 times the smallest nonzero step (ADC steps
+    and noise alone give no exact repeat inside such a change); NaN when too few move."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 8:
+        return math.nan
+    step = np.abs(np.diff(x))
+    nonzero = step[step > 0.0]
+    if nonzero.size == 0:
+        return math.nan
+    span = np.abs(x[2:] - x[:-2])
+    moving = (span > np.median(span)) & (span > 4.0 * float(np.min(nonzero)))
+    if np.count_nonzero(moving) < 20:
+        return math.nan
+    return float(np.mean(step[:-1][moving] == 0.0))
+
+
 def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,
-                sigma: tuple[float, float] | None) -> ModelCheck:
+                sigma: tuple[float, float] | None,
+                readings: tuple[np.ndarray, np.ndarray] | None = None,
+                columns: tuple[str, str] = ("sensor 1", "sensor 2")) -> ModelCheck:
     """The model check (module docstring). ``residuals``: each sensor's reading minus what
     the reconstruction predicts for it (None without a reconstruction); ``sigma``: the noise
-    levels they are compared with."""
+    levels they are compared with; ``readings``: checked for held readings."""
     mu, statistic = _misfit(estimate)
     reasons = []
+    for column, x in zip(columns, readings or (), strict=False):
+        share = held_share(x)
+        if share > HELD_SHARE:
+            reasons.append(
+                f"{column} holds its readings: {share:.0%} of the rows where it moves repeat "
+                "the previous value exactly (a logger refreshing slower than the rows); the "
+                "model has no such delay and the time constants absorb it: use the logger's "
+                "own rate, or the rows where the reading changes")
     if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
         reasons.append(
             f"the identified model does not explain the data: the two sensors' reconstructions "
