@@ -54,11 +54,18 @@ class FlowModel:
     tracking: tracking.Tracking | None = None
     level_sensitivity: float = 0.0  # b of tau ~ exp(b (T - level_reference)), per unit of T
     level_reference: float | None = None
-    level_factor: np.ndarray | None = None  # psi's factor from the level, per row
 
     @property
     def scheduled(self) -> bool:
         return self.kind != "constant"
+
+    def level_factor(self, level: np.ndarray) -> np.ndarray | None:
+        """psi's factor from the gas-level term at ``level`` (sensor 1's readings); None
+        without one."""
+        if self.level_reference is None:
+            return None
+        return np.exp(-self.level_sensitivity * (np.asarray(level, dtype=float)
+                                                 - self.level_reference))
 
 
 def _fit_of(estimate: PairEstimate) -> Fit:
@@ -201,8 +208,7 @@ def _level(
     return levelled, FlowModel("power_law", psi, signal.column, m, math.nan, signal.reference,
                                signal.span, evidence=stats, profile=power.profile,
                                level_sensitivity=float(best.x[1]) / span,
-                               level_reference=reference,
-                               level_factor=np.exp(-float(best.x[1]) * deviation))
+                               level_reference=reference)
 
 
 def _curve(

@@ -191,8 +191,9 @@ def characterise_pair(
             return base
         if signal is not None:
             estimate, model = flow_law(a, b, first, signal, run)
-            if model.level_factor is not None:  # the exponent's uncertainty with the level
-                signal = dataclasses.replace(signal, factor=model.level_factor)
+            factor = model.level_factor(a)
+            if factor is not None:  # the exponent's uncertainty with the level term
+                signal = dataclasses.replace(signal, factor=factor)
         elif base.status != "ok" or _misfits(base):
             estimate, model = track_without_flow(a, b, first, run)
         if model is not None and model.kind == "constant":

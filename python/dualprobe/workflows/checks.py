@@ -340,5 +340,5 @@ def _refuse_departing_gas(estimate: PairEstimate, gas: np.ndarray,
             f"{departure / spread:.2g} times their mutual disagreement ({spread:.3g} K) where "
             f"sensors lagging with these time constants allow about {allowed:.2g} times, and the "
             f"model does not explain the signals (misfit {mu:.3g} x the noise): the "
-            "reconstruction cannot be trusted; the time constants may follow the gas flow (give "
-            "--flow), or try --order 1 or dualprobe diagnose")
+            f"reconstruction cannot be trusted; {_advice(estimate)}, or try --order 1 or "
+            "dualprobe diagnose")
