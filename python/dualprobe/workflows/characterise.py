@@ -21,6 +21,7 @@ from dualprobe.workflows.checks import (
     refuse_implausible,
     spurious_shared_stage,
     undetermined_gain,
+    undetermined_stages,
     unsettled_stages,
 )
 
@@ -193,7 +194,8 @@ def characterise_arrays(
     unsettled = unsettled_stages(estimate) if requested is None else []
     shared = spurious_shared_stage(estimate) if requested is None else None
     gain = undetermined_gain(estimate) if requested is None else None
-    if (unsettled or shared or gain is not None) and estimate.status == "ok":
+    loose = undetermined_stages(estimate) if requested is None else []
+    if (unsettled or shared or gain is not None or loose) and estimate.status == "ok":
         # order chosen by evidence: a second stage that the filter setting moves (in a model
         # that claims to explain the data), or one shared by both sensors (misfitting or not
         # determined), is model error absorbed by a (near-)common factor of the two sensors,
@@ -213,9 +215,15 @@ def characterise_arrays(
                 why = (f"the second-order fit gave both sensors a time constant of about "
                        f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine"
                        + common)
-            else:
+            elif gain is not None:
                 why = (f"the second-order fit's gain ratio ({gain:.3g}) is not determined by "
                        "the data: its second stages and static map trade against each other")
+            else:
+                why = ("the second-order fit's time constants "
+                       + ", ".join(f"{value:.3g} s of {columns[i]} (+-{share:.0%})"
+                                   for i, value, share in loose)
+                       + " are not determined by the data: its stages trade against each "
+                       "other, as when both sensors have nearly equal second stages")
             ident["order_fallback"] = "order chosen by evidence: first order; " + why
             estimate = replace(first, identifiability=ident)
     if estimate.status != "ok":
