@@ -55,6 +55,21 @@ class TrackSolution:
     vector: np.ndarray  # [dense coefficients, knot coefficients], psi normalised to mean 1
 
 
+def _checked_inverse(a: sp.csc_matrix) -> spl.LinearOperator:
+    """``a``'s inverse for the shift-invert Lanczos, raising RuntimeError on a non-finite
+    solve: a nearly singular pencil otherwise hands ARPACK infinities, which it iterates on
+    (LAPACK's DLASCL complaining on the terminal) before failing or returning garbage."""
+    lu = spl.splu(a)
+
+    def solve(x: np.ndarray) -> np.ndarray:
+        y = lu.solve(np.asarray(x, dtype=float))
+        if not np.all(np.isfinite(y)):
+            raise RuntimeError("the tracking pencil is singular")
+        return y
+
+    return spl.LinearOperator(a.shape, matvec=solve, dtype=float)
+
+
 def solve_penalised(system: KnotSystem, penalty: float,
                     matrices: tuple[sp.csc_matrix, sp.csc_matrix, sp.csc_matrix] | None = None,
                     ) -> TrackSolution:
@@ -69,7 +84,8 @@ def solve_penalised(system: KnotSystem, penalty: float,
     if not (np.all(np.isfinite(a.data)) and np.all(np.isfinite(m.data))):
         raise TrackingError("the tracking system is not finite (no excitation somewhere)")
     try:
-        values, vectors = spl.eigsh(a, k=1, M=m, sigma=0.0, which="LM")
+        values, vectors = spl.eigsh(a, k=1, M=m, sigma=0.0, which="LM",
+                                    OPinv=_checked_inverse(a))
     except (spl.ArpackError, spl.ArpackNoConvergence, RuntimeError):
         # shift-invert Lanczos can stall on nearly singular pencils: the dense solver for
         # moderate sizes, else no tracking
