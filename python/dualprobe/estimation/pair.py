@@ -191,8 +191,9 @@ def characterise_pair(
             return base
         if signal is not None:
             estimate, model = flow_law(a, b, first, signal, run)
-            factor = model.level_factor(a)
-            if factor is not None:  # the exponent's uncertainty with the level term
+            if model.level_reference is not None:
+                # the exponent's uncertainty with the level term: its per-row factor as fitted
+                factor = model.psi / signal.psi(model.exponent)
                 signal = dataclasses.replace(signal, factor=factor)
         elif base.status != "ok" or _misfits(base):
             estimate, model = track_without_flow(a, b, first, run)
