@@ -126,7 +126,7 @@ def flow_law(
     stats.update(exponent=m, misfit_power_law=fit.misfit)
     model = FlowModel("power_law", signal.psi(m), signal.column, m, math.nan, signal.reference,
                       signal.span, evidence=stats, profile=(flow.EXPONENT_GRID, profile))
-    levelled = _level(t1, t2, estimate, signal, model, run)
+    levelled = _level(t1, t2, estimate, signal, model, run, base.time_constants[0][0])
     if levelled is not None:
         return levelled
     curved = _curve(t1, t2, estimate, signal, model, run)
@@ -135,7 +135,7 @@ def flow_law(
 
 def _level(
     t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, signal: flow.FlowSignal,
-    power: FlowModel, run: RunSvf,
+    power: FlowModel, run: RunSvf, tau: float,
 ) -> tuple[PairEstimate, FlowModel] | None:
     """The power law times a gas-level term, ``tau ~ flow^-m exp(b (T - T_ref))``, when the
     power law alone leaves a misfit (above ``_TRACKING_MISFIT`` times the noise) and the term
@@ -148,12 +148,14 @@ def _level(
     grow with T). On a drive cycle whose sensors follow (mass flow x T)^-0.5, the power law
     in mass flow alone left a misfit of 21.7 times the noise (exponent 0.588 for 0.5); m and b
     are searched jointly since the level follows the load, and so the flow. T is the gas
-    level (:func:`_gas_level`), in the unit of the data: b is per unit of the temperature
+    level (:func:`_gas_level`, with ``tau``, sensor 1's first-order time constant, scheduled by
+    the power law: an order-2 fit's stages can be anything while the law is still missing its
+    level, e.g. a complex pair), in the unit of the data: b is per unit of the temperature
     columns (K or degC alike)."""
     fit = _fit_of(estimate)
     if fit.misfit <= _TRACKING_MISFIT or fit.hysteresis:
         return None
-    level = _gas_level(t1, estimate.time_constants[0][0] / power.psi, fit.ts, fit.tf)
+    level = _gas_level(t1, tau / power.psi, fit.ts, fit.tf)
     reference = float(np.mean(level))
     lo, hi = np.quantile(level, [0.05, 0.95])
     span = float(hi - lo)
