@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from dualprobe.estimation.engine import Fit
+from dualprobe.io import EstimationError
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
 from dualprobe.workflows.checks import held_share
@@ -138,6 +139,18 @@ def test_undetermined_stages_fall_back_to_first_order() -> None:
     # far better than the raw fast sensor (measured 26 %), and not called adequate
     assert _rmse(result.gas_estimate, rec.gas) <= 0.4 * _rmse(rec.t1, rec.gas)
     assert result.model_check is not None and not result.model_check.adequate
+
+
+def test_asked_for_order_2_with_undetermined_stages_is_refused() -> None:
+    """2 Hz, tau 2.2 / 6.1 s, a 0.16 s sheath on sensor 2, 0.1 K noise and ADC steps, the mass
+    flow as the column, ``--order 2``: 4.15 +- 46 % / 1.35 s and 6.46 / 2.86 +- 77 % s, the
+    model "adequate" at 0.9 times the noise and the gas 28.9 K RMS off where the raw fast
+    sensor is 13.2 K off, exit 0. No number instead, and what to do."""
+    rec = record(4006, duration=900.0, rate=2.0, tau=2.2, ratio=2.78, m=0.65,
+                 sheaths=(0.0, 0.16), noise=0.101, adc=0.1, jitter=0.002)
+    with pytest.raises(EstimationError, match="do not determine the second-order"):
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, order=2, flow=rec.mass_flow,
+                            flow_column="mdot", reconstruction="smoother")
 
 
 def test_held_readings_are_named_not_called_adequate() -> None:
