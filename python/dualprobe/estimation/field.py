@@ -155,9 +155,10 @@ def _level(
     fit = _fit_of(estimate)
     if fit.misfit <= _TRACKING_MISFIT or fit.hysteresis:
         return None
-    # the better of the two levels (same parameters): the inverse at 10 Hz (m within 0.011-0.030
-    # of the truth on 7 pairs, the reading 0.028-0.060), the reading on a 2 Hz pair with a 2.2 s
-    # element (m 0.635 for 0.65, the inverse 0.590 and an order-2 fit gone astray)
+    # the better of the two levels (same parameters): the inverse alone at 10 Hz gave m within
+    # 0.011-0.030 of the truth on 7 pairs (the reading 0.028-0.060; the better of the two,
+    # 0.011-0.045); on a 2 Hz pair with a 2.2 s element the inverse is coarse (m 0.590 for
+    # 0.65; the better of the two, 0.647)
     found = [_level_search(t1, t2, fit, signal, power.exponent, level)
              for level in (_gas_level(t1, tau / power.psi, fit.ts, fit.tf),
                            np.asarray(t1, dtype=float))]
