@@ -241,12 +241,12 @@ def undetermined_stages(estimate: PairEstimate) -> list[tuple[int, float, float]
     identifiable) and ``_STAGE_SHARE`` of their sensor's dominant time constant (it matters to
     the reconstruction). A resolved stage is determined: sheath stages of 0.3-1 s on 1.6-33 s
     elements, 5-20 Hz, with or without the flow, came out within 0-5 %; a small one may not
-    be (0.27 s +- 58 % on a 6 s element, true 0.25 s; 1.7 % of its element's time constant
-    there, and first order misfit by 590 times the noise). Two near-equal sheaths (0.64 / 0.79
-    s) nearly cancel from the cross-relation instead, and order 2 traded stages that the data
-    do not fix: 7.1 +- 32 % and 3.8 +- 30 % s for a 4.8 s element, 5.3 +- 53 % s for a 0.79 s
-    sheath (13-32 % of the dominant time constants); the gas 22 K RMS off where the raw fast
-    sensor is 17.6 K off, with exit 0."""
+    be (0.27 s +- 58 % on a 6 s element, true 0.25 s: an uncertainty of 2.6 % of its
+    element's time constant, and first order misfit by 590 times the noise). Two near-equal
+    sheaths (0.64 / 0.79 s) nearly cancel from the cross-relation instead, and order 2 traded
+    stages that the data do not fix: 7.1 +- 32 % and 3.8 +- 30 % s for a 4.8 s element,
+    5.3 +- 53 % s for a 0.79 s sheath (13-32 % of the dominant time constants); the gas 22 K
+    RMS off where the raw fast sensor is 17.6 K off, with exit 0."""
     conf = estimate.confidence
     if conf is None or estimate.order != 2:
         return []
