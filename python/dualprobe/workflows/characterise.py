@@ -18,7 +18,9 @@ from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import (
     check_model,
+    describe_stages,
     refuse_implausible,
+    refuse_undetermined,
     spurious_shared_stage,
     undetermined_gain,
     undetermined_stages,
@@ -194,16 +196,9 @@ def characterise_arrays(
     unsettled = unsettled_stages(estimate) if requested is None else []
     shared = spurious_shared_stage(estimate) if requested is None else None
     gain = undetermined_gain(estimate) if requested is None else None
-    loose = undetermined_stages(estimate)
-    if requested is not None and loose and estimate.status == "ok":
-        # asked for order 2, and its time constants are not determined: no number (a 2 Hz
-        # pair gave 4.15 +- 46 % and 2.86 +- 77 % s, the model "adequate" at 0.9 times the
-        # noise and the gas 28.9 K off where the raw fast sensor is 13.2 K off)
-        raise EstimationError(
-            "the data do not determine the second-order time constants ("
-            + ", ".join(f"{value:.3g} s of {columns[i]} +-{share:.0%}" for i, value, share in loose)
-            + "): the stages trade against each other; use the order chosen by evidence "
-            "(--order auto) or --order 1")
+    if requested is not None:
+        refuse_undetermined(estimate, columns)
+    loose = undetermined_stages(estimate) if requested is None else []
     if (unsettled or shared or gain is not None or loose) and estimate.status == "ok":
         # order chosen by evidence: a second stage that the filter setting moves (in a model
         # that claims to explain the data), or one shared by both sensors (misfitting or not
@@ -228,9 +223,7 @@ def characterise_arrays(
                 why = (f"the second-order fit's gain ratio ({gain:.3g}) is not determined by "
                        "the data: its second stages and static map trade against each other")
             else:
-                why = ("the second-order fit's time constants "
-                       + ", ".join(f"{value:.3g} s of {columns[i]} (+-{share:.0%})"
-                                   for i, value, share in loose)
+                why = ("the second-order fit's time constants " + describe_stages(loose, columns)
                        + " are not determined by the data: its stages trade against each "
                        "other, as when both sensors have nearly equal second stages")
             ident["order_fallback"] = "order chosen by evidence: first order; " + why

@@ -29,7 +29,8 @@ order-2 fit whose second time constants move with the filter time constant by mo
 (:func:`unsettled_stages`) absorbed model error in a stage nearly common to both sensors, and
 so did one whose time constants or gain ratio the data do not determine
 (:func:`spurious_shared_stage`, :func:`undetermined_stages`, :func:`undetermined_gain`); the
-order chosen by evidence is then 1 (``characterise_arrays``).
+order chosen by evidence is then 1 (``characterise_arrays``), and an asked-for order 2 whose
+time constants are not determined is refused (:func:`refuse_undetermined`).
 """
 
 from __future__ import annotations
@@ -46,9 +47,9 @@ from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
 
-__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "held_share",
-           "refuse_implausible", "spurious_shared_stage", "undetermined_gain",
-           "undetermined_stages", "unsettled_stages"]
+__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "describe_stages",
+           "held_share", "refuse_implausible", "refuse_undetermined", "spurious_shared_stage",
+           "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
@@ -225,11 +226,18 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
     if conf is None:
         return None
     for i, value in enumerate(shared):
-        taus = estimate.time_constants[i]
-        std = conf.std.get(f"tau{i + 1}_{taus.index(value)}", math.nan)
-        if not std <= RELATIVE_LIMIT * abs(value):  # reported not identifiable
+        share = _relative_std(estimate, i, estimate.time_constants[i].index(value))
+        if not share <= RELATIVE_LIMIT:  # reported not identifiable
             return shared
     return None
+
+
+def _relative_std(estimate: PairEstimate, sensor: int, stage: int) -> float:
+    """Standard uncertainty / value of a sensor's time constant (NaN when not estimated)."""
+    conf = estimate.confidence
+    value = estimate.time_constants[sensor][stage]
+    std = math.nan if conf is None else conf.std.get(f"tau{sensor + 1}_{stage}", math.nan)
+    return std / abs(value) if value != 0 else math.inf
 
 
 _STAGE_SHARE = 0.1  # an undetermined stage matters when its uncertainty is 10 % of the element's
@@ -247,17 +255,34 @@ def undetermined_stages(estimate: PairEstimate) -> list[tuple[int, float, float]
     stages that the data do not fix: 7.1 +- 32 % and 3.8 +- 30 % s for a 4.8 s element,
     5.3 +- 53 % s for a 0.79 s sheath (13-32 % of the dominant time constants); the gas 22 K
     RMS off where the raw fast sensor is 17.6 K off, with exit 0."""
-    conf = estimate.confidence
-    if conf is None or estimate.order != 2:
+    if estimate.confidence is None or estimate.order != 2:
         return []
     found = []
     for index, taus in enumerate(estimate.time_constants):
         for stage, value in enumerate(taus):
-            std = conf.std.get(f"tau{index + 1}_{stage}", math.nan)
-            if (math.isfinite(std) and std > RELATIVE_LIMIT * abs(value)
-                    and std > _STAGE_SHARE * abs(taus[0])):
-                found.append((index, value, std / abs(value)))
+            share = _relative_std(estimate, index, stage)
+            if (math.isfinite(share) and share > RELATIVE_LIMIT
+                    and share * abs(value) > _STAGE_SHARE * abs(taus[0])):
+                found.append((index, value, share))
     return found
+
+
+def describe_stages(loose: list[tuple[int, float, float]], columns: tuple[str, str]) -> str:
+    """The undetermined time constants of :func:`undetermined_stages`, for a message."""
+    return ", ".join(f"{value:.3g} s of {columns[i]} (+-{share:.0%})" for i, value, share in loose)
+
+
+def refuse_undetermined(estimate: PairEstimate, columns: tuple[str, str]) -> None:
+    """Raise EstimationError (exit 3) when an asked-for order 2 has time constants the data do
+    not determine (:func:`undetermined_stages`): no number. A 2 Hz pair gave 4.15 +- 46 % and
+    2.86 +- 77 % s, the model "adequate" at 0.9 times the noise and the gas 28.9 K off where
+    the raw fast sensor is 13.2 K off."""
+    loose = undetermined_stages(estimate)
+    if loose and estimate.status == "ok":
+        raise EstimationError(
+            f"the data do not determine the second-order time constants "
+            f"({describe_stages(loose, columns)}): the stages trade against each other; use "
+            "the order chosen by evidence (--order auto) or --order 1")
 
 
 def undetermined_gain(estimate: PairEstimate) -> float | None:
