@@ -380,16 +380,13 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
 
 def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
     """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`: ``_GAS_SAFETY``
-    times the increments of sensor 1's first-order inverse through the SVF (about 0.7 of the
-    oracle's q on drive cycles). Given the TRUE stages a weaker prior is better (1.23x, 3.01x,
-    1.59x the oracle with the oracle's q; 1.11x, 2.27x, 1.33x with 100 times it), but with the
-    estimated stages psi then absorbs their errors (a drive cycle at 2.30x went to 3.32x with
-    100 times), so the factor stays at 4 (the sweeps in the README); a tenth of the oracle's q
-    was worse in both (1.25x -> 1.43x)."""
-    from dualprobe import _core
-
-    out = _core.svf_filter(t1 - t1[0], fit.ts, fit.tf, 2, "foh")[0]
-    gas = out[0] + tau * out[1] / fit.tf
+    times the increments of sensor 1's first-order inverse (:func:`_gas_level` at the
+    constant fit's time constant; about 0.7 of the oracle's q on drive cycles). Given the TRUE
+    stages a weaker prior is better (1.23x, 3.01x, 1.59x the oracle with the oracle's q; 1.11x,
+    2.27x, 1.33x with 100 times it), but with the estimated stages psi then absorbs their
+    errors (a drive cycle at 2.30x went to 3.32x with 100 times), so the factor stays at 4 (the
+    sweeps in the README); a tenth of the oracle's q was worse in both (1.25x -> 1.43x)."""
+    gas = _gas_level(t1, np.full(t1.size, tau), fit.ts, fit.tf)
     return max(_GAS_SAFETY * float(np.mean(np.diff(gas) ** 2)) / fit.ts, 1e-6)
 
 
