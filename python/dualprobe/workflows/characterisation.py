@@ -14,7 +14,10 @@ from dualprobe.estimation import PairEstimate
 from dualprobe.report.json import jsonable
 from dualprobe.workflows.checks import ModelCheck
 
-__all__ = ["Characterisation"]
+__all__ = ["TRACKED_STD_NOTE", "Characterisation"]
+
+TRACKED_STD_NOTE = ("T_g_std assumes these tracked time constants: their own error, which "
+                    "can dominate the gas's without a flow signal, is not in it")
 
 
 def _fmt(value: float, std: float | None = None) -> str:
@@ -246,6 +249,10 @@ class Characterisation:
             lines.append(text)
             lines.extend(f"warning: reconstruction not reliable: {doubt}"
                          for doubt in self.reconstruction_doubts())
+            if model is not None and model.kind == "tracked" and self.gas_std is not None:
+                # measured on separately simulated drive cycles: the gas error's RMS was 1-3
+                # times T_g_std's with the flow, and 1-31 times tracked without it
+                lines.append(f"  note: {TRACKED_STD_NOTE}")
         if check is not None:
             lines.extend(check.summary_lines())
         return "\n".join(lines)
