@@ -5,10 +5,9 @@ free monotone curve of the flow (:mod:`dualprobe.estimation.flow`), each by evid
 orders and the static model are chosen again with the winning schedule, and the exponent is
 refined for them (again, while it moves). :func:`track_without_flow` tracks a common factor of
 both time constants over the record when there is no flow signal
-(:mod:`dualprobe.estimation.tracking`), but only when
-the constant model leaves a significant misfit that tracking removes. Either way the result is a
-schedule psi per sample (time constants ``tau / psi``) that the final SVF fit, the uncertainty
-and the reconstruction use.
+(:mod:`dualprobe.estimation.tracking`), but only when the constant model leaves a significant
+misfit that tracking removes. Either way the result is a schedule psi per sample (time
+constants ``tau / psi``) that the final SVF fit, the uncertainty and the reconstruction use.
 """
 
 from __future__ import annotations

@@ -250,8 +250,8 @@ class Characterisation:
             lines.extend(f"warning: reconstruction not reliable: {doubt}"
                          for doubt in self.reconstruction_doubts())
             if model is not None and model.kind == "tracked" and self.gas_std is not None:
-                # measured on separately simulated drive cycles: the gas error's RMS was 1-3
-                # times T_g_std's with the flow, and 1-31 times tracked without it
+                # measured on separately simulated drive cycles: the gas error over T_g_std had
+                # an RMS of 0.6-3.9 with the flow, and 1.0-31 tracked without it
                 lines.append(f"  note: {TRACKED_STD_NOTE}")
         if check is not None:
             lines.extend(check.summary_lines())

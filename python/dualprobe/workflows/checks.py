@@ -233,7 +233,8 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
 
 
 def _relative_std(estimate: PairEstimate, sensor: int, stage: int) -> float:
-    """Standard uncertainty / value of a sensor's time constant (NaN when not estimated)."""
+    """Standard uncertainty / value of a sensor's time constant (NaN when not estimated, inf
+    for a zero time constant)."""
     conf = estimate.confidence
     value = estimate.time_constants[sensor][stage]
     std = math.nan if conf is None else conf.std.get(f"tau{sensor + 1}_{stage}", math.nan)
