@@ -131,10 +131,11 @@ def test_mass_flow_gets_a_gas_level_term(monkeypatch: pytest.MonkeyPatch) -> Non
     assert model.evidence["level_statistic"] > GAP_THRESHOLD
     doc = result.to_json_dict()
     assert doc["flow_model"]["level_sensitivity"] == model.level_sensitivity
-    assert "_LEVEL_REF" in dcm_text(doc)
+    assert doc["flow_model"]["level_curvature"] == model.level_curvature
+    assert "_LEVEL_REF" in dcm_text(doc) and "_LEVEL2" in dcm_text(doc)
     # issue 11's bounds hold (measured: 1.3 % and 1.20x; without the term 2.3 % and 1.31x)
     assert error < 0.05 and gas <= 1.5 * best
-    monkeypatch.setattr(field, "_level", lambda *args: None)
+    monkeypatch.setattr(field, "_level", lambda *args, **kwargs: None)
     _, error_without, gas_without = run()
     # better than the power law alone on both counts (1.3 % vs 2.3 %; 1.20x vs 1.31x)
     assert error < 0.8 * error_without and gas < gas_without

@@ -121,19 +121,22 @@ def test_without_flow_meets_the_issue_bound() -> None:
     assert TRACKED_STD_NOTE in result.summary()
 
 
-@pytest.mark.parametrize("seed,duration", [(12, 1200.0), (6, 600.0)])
-def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(seed: int,
-                                                                   duration: float) -> None:
+@pytest.mark.parametrize("seed,duration,fallback", [(12, 1200.0, False), (6, 600.0, True)])
+def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(seed: int, duration: float,
+                                                                   fallback: bool) -> None:
     """50 Hz, tau 2 / 8 s, m 0.35, 0.1 K noise, the mass flow as the column: order 2 gave both
     sensors a common slow "stage" that absorbed the missing level term. Seed 12: 276 / 275 s,
     the model "adequate" and the gas 2,081 K RMS off with exit 0; seed 6 (600 s): 52.6 / 44 s,
     misfit, refused. Of seeds 1-12, 7 were refused and 1 absurd; first order, which a pair can
-    determine, gave 0.86-0.97 K for all 12 (raw fast sensor about 11 K)."""
+    determine, gave 0.86-0.97 K for all 12 (raw fast sensor about 11 K). Since the level term
+    is decided at first order, seed 12's order-2 fit with the level no longer takes a shared
+    stage and the order choice itself gives first order (1.03x the oracle); seed 6 still
+    falls back from a 52.6 / 44 s pair."""
     rec = record(seed, duration=duration, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
                                  flow_column="mdot", reconstruction="smoother")
     assert [len(t) for t in result.estimate.time_constants] == [1, 1]
-    assert "order_fallback" in result.estimate.identifiability
+    assert ("order_fallback" in result.estimate.identifiability) == fallback
     assert max(_tau_errors(result, rec)) < 0.05
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
@@ -157,21 +160,56 @@ def test_an_undetermined_gain_falls_back_to_first_order() -> None:
     assert isinstance(fit, Fit) and abs(fit.gain_ratio - 1.009 / 0.97) < 0.1
 
 
-def test_undetermined_stages_fall_back_to_first_order() -> None:
-    """10 Hz, tau 4.8 / 18.2 s, m 0.41, near-equal sheaths 0.64 / 0.79 s, the mass flow as the
-    column: the sheaths nearly cancel from the cross-relation and order 2 traded stages the data
-    do not fix (7.1 +- 32 %, 3.8 +- 30 % and 20.8, 5.3 +- 53 % s): the gas 22.1 K RMS off, worse
-    than the raw fast sensor (17.6 K), with exit 0. First order: 4.5 K, named not adequate
-    (a stage common to both sensors is beyond what a pair resolves; the oracle knows it)."""
-    rec = record(61006, duration=900.0, rate=10.0, tau=4.8, ratio=3.79, m=0.41,
-                 sheaths=(0.64, 0.79))
+@pytest.mark.parametrize("seed,tau,ratio,m,sheaths", [
+    (61006, 4.8, 3.79, 0.41, (0.64, 0.79)), (62000, 5.46, 3.5, 0.61, (0.69, 0.85))])
+def test_near_equal_sheaths_are_resolved_with_an_order_2_level(
+        seed: int, tau: float, ratio: float, m: float, sheaths: tuple[float, float]) -> None:
+    """10 Hz, near-equal sheaths, the mass flow as the column. The sheaths nearly cancel from
+    the cross-relation, so the stages hang on psi being right to a fraction of a per cent: with
+    the level from sensor 1's first-order inverse, order 2 traded stages the data did not fix
+    (61006: 7.1 +- 32 %, 3.8 +- 30 % s; the gas 22.1 K RMS off, worse than the raw fast sensor,
+    exit 0), then fell back to first order at 3.6x and 4.0x the oracle. With the level decided
+    at first order, the quadratic term and sensor 1's order-2 inverse as the level (measured:
+    per-row time constants 0.3-0.5 % RMS, the gas 1.02x the oracle for both, adequate)."""
+    rec = record(seed, duration=900.0, rate=10.0, tau=tau, ratio=ratio, m=m, sheaths=sheaths)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
                                  flow_column="mdot", reconstruction="smoother")
-    assert [len(t) for t in result.estimate.time_constants] == [1, 1]
-    assert "not determined" in str(result.estimate.identifiability["order_fallback"])
+    assert [len(t) for t in result.estimate.time_constants] == [2, 2]
+    # the issue's bounds: per-row time constants within 5 %, the gas within 1.5x the oracle
+    # and 15 % of the raw fast sensor
+    assert max(_tau_errors(result, rec)) < 0.05
     assert result.gas_estimate is not None
-    # far better than the raw fast sensor (measured 26 %), and not called adequate
-    assert _rmse(result.gas_estimate, rec.gas) <= 0.4 * _rmse(rec.t1, rec.gas)
+    ours = _rmse(result.gas_estimate, rec.gas)
+    assert ours <= 1.5 * _oracle_rmse(rec)
+    assert ours <= 0.15 * _rmse(rec.t1, rec.gas)
+    model = result.estimate.flow_model
+    assert model is not None and abs(model.exponent - m) < 0.05  # measured 0.401, 0.603
+    # the sheaths per row within 10 % RMS (measured 1.7-4.5 %), though nearly common
+    for i, truth in enumerate((rec.sheath1, rec.sheath2)):
+        stage = result.estimate.time_constants[i][1] / model.psi
+        assert float(np.sqrt(np.mean((stage / truth - 1.0) ** 2))) < 0.10
+    # the generator's sensors follow (mass flow x T)^-m: log tau is convex in T, c ~ m / 2T^2
+    # (6e-7 and 9e-7 per K^2 at 580 K; measured 8.4e-7 and 1.05e-6)
+    assert model.level_curvature > 0.0
+    assert result.model_check is not None and result.model_check.adequate
+
+
+def test_near_equal_sheaths_with_a_residual_misfit_are_not_taken_for_a_common_factor() -> None:
+    """The 62000 pair over 30 min: order 2 found 0.89 / 1.09 s for sheaths of 0.82 / 1.01 s
+    (at the reference flow), but over 18 000 rows its small misfit (1.54 times the noise) was
+    significant, and a nearly shared pair of stages in a misfitting model was taken for a
+    common factor absorbing model error: first order, 3.86x the oracle. Fast stages under
+    half the dominant time constants are sheaths (the common factors were 24-4033 s): order 2
+    is kept, 1.14x, and the misfit is still reported."""
+    rec = record(62000, duration=1800.0, rate=10.0, tau=5.46, ratio=3.5, m=0.61,
+                 sheaths=(0.69, 0.85))
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    assert [len(t) for t in result.estimate.time_constants] == [2, 2]
+    assert "order_fallback" not in result.estimate.identifiability
+    assert max(_tau_errors(result, rec)) < 0.05  # measured 0.5 %
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
     assert result.model_check is not None and not result.model_check.adequate
 
 

@@ -237,9 +237,10 @@ def polynomial_time_constants(coeffs: tuple[float, ...]) -> tuple[float, ...]:
 def solve_gtls(scatter: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Generalised TLS on a (sub-)scatter as the core solves it: scaling by diag(S)^-1/2, C
     regularised by 1e-12 max(trace, 1) I; returns (theta with last entry -1, eigenvalues)."""
-    d = np.sqrt(np.diag(scatter))
-    if not np.all(np.isfinite(d)) or np.any(d <= 0.0):
+    diagonal = np.diag(scatter)
+    if not np.all(np.isfinite(diagonal)) or np.any(diagonal <= 0.0):
         raise np.linalg.LinAlgError("solve_gtls: a regression column is identically zero")
+    d = np.sqrt(diagonal)
     s_n = scatter / np.outer(d, d)
     c_n = cov / np.outer(d, d)
     c_n = c_n + 1e-12 * max(float(np.trace(c_n)), 1.0) * np.eye(d.size)

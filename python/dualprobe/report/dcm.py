@@ -13,8 +13,9 @@ Written from the characterisation's JSON document (``Characterisation.to_json_di
 * a second stage (order 2) as ``FESTWERT <name>_2``; heating / cooling time constants
   (hysteresis) as ``FESTWERT <name>_HEAT`` / ``<name>_COOL``;
 * a gas-level term of the flow law (``flow_model.level_reference`` given): ``FESTWERT
-  <name>_LEVEL`` (b, per unit of the temperature columns) and ``<name>_LEVEL_REF`` (the level
-  the curve holds at): tau(flow, T) = curve(flow) exp(b (T - T_ref)).
+  <name>_LEVEL`` (b, per unit of the temperature columns), ``<name>_LEVEL2`` (c, per unit
+  squared; 0 when the document has none) and ``<name>_LEVEL_REF`` (the level the curve holds
+  at): tau(flow, T) = curve(flow) exp(b dT + c dT^2), dT = T - T_ref.
 
 Every entry has ``LANGNAME`` (what it is, which column), ``EINHEIT_W "s"`` and for curves
 ``EINHEIT_X`` (the flow unit, ``"-"`` when unknown). Names are configurable (one per sensor).
@@ -175,11 +176,15 @@ def dcm_text(
             lines += _festwert(f"{name}_2", f"Second time constant of {what}", taus[1])
             lines.append("")
         if isinstance(model, Mapping) and model.get("level_reference") is not None:
-            # tau(flow, T) = curve(flow) * exp(LEVEL * (T - LEVEL_REF)): the gas-level term
-            level, reference = _finite([model.get("level_sensitivity"),
-                                        model.get("level_reference")], "the level term")
+            # tau(flow, T) = curve(flow) * exp(LEVEL dT + LEVEL2 dT^2), dT = T - LEVEL_REF
+            level, reference, curvature = _finite(
+                [model.get("level_sensitivity"), model.get("level_reference"),
+                 model.get("level_curvature", 0.0)], "the level term")
             lines += _festwert(f"{name}_LEVEL", f"Log change of {what}'s time constants per "
                                "unit of gas temperature", level, "1/T")
+            lines.append("")
+            lines += _festwert(f"{name}_LEVEL2", f"Curvature of the log of {what}'s time "
+                               "constants in the gas temperature", curvature, "1/T^2")
             lines.append("")
             lines += _festwert(f"{name}_LEVEL_REF", f"Gas temperature of {what}'s curve",
                                reference, "T")

@@ -96,6 +96,7 @@ class Characterisation:
                                "reference_flow": model.reference_flow,
                                "level_sensitivity": model.level_sensitivity,
                                "level_reference": model.level_reference,
+                               "level_curvature": model.level_curvature,
                                "evidence": dict(model.evidence)}
         if model.flow_range is not None:
             doc["flow_range"] = list(model.flow_range)
@@ -218,12 +219,12 @@ class Characterisation:
                 law = "power law" if model.kind == "power_law" else "free curve (monotone)"
                 lines.append(f"  flow law: {law}, tau ~ flow^-m, m = {exponent}")
                 if model.level_reference is not None:
-                    b = model.level_sensitivity
+                    b, c = model.level_sensitivity, model.level_curvature
                     ref = f"{model.level_reference:.4g}"
                     per100 = 100.0 * math.expm1(100.0 * b)
-                    lines.append(f"  and the gas level: tau ~ exp(b (T - {ref})), b = {b:.3g} "
-                                 f"per unit of T ({per100:+.3g} % per 100; time constants above "
-                                 f"are at T = {ref})")
+                    lines.append(f"  and the gas level: tau ~ exp(b dT + c dT^2), dT = T - {ref}, "
+                                 f"b = {b:.3g} per unit of T ({per100:+.3g} % per 100 at {ref}), "
+                                 f"c = {c:.3g}; time constants above are at T = {ref}")
         elif model is not None and model.column is not None:
             lines.append("  flow law: constant (the time constants do not follow the flow "
                          "measurably)")
