@@ -387,7 +387,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
 
 def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
     """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`: ``_GAS_SAFETY``
-    times the increments of sensor 1's first-order inverse (:func:`_gas_level` at the
+    times the increments of sensor 1's first-order inverse (:func:`level.gas_level` at the
     constant fit's time constant; about 0.7 of the oracle's q on drive cycles). Given the TRUE
     stages a weaker prior is better (1.23x, 3.01x, 1.59x the oracle with the oracle's q; 1.11x,
     2.27x, 1.33x with 100 times it), but with the estimated stages psi then absorbs their

@@ -105,12 +105,13 @@ def search(
 def gas_level(t1: np.ndarray, tau: np.ndarray, ts: float, smoothing: float,
                second: np.ndarray | None = None) -> np.ndarray:
     """The gas level for the level term: sensor 1's first-order inverse ``T1 + tau T1'`` with
-    the power law's per-row time constant, smoothed zero-phase over ``smoothing`` seconds (the
-    fit's filter time constant: what the SVF resolves; it keeps the inverse's noise to a
-    fraction of a kelvin, 1e-3 of psi). Sensor 1's reading lags the gas by its time constant,
-    hundreds of kelvin on load steps through the combustion path; on four drive cycles whose
-    sensors follow (mass flow x T)^-m the misfit with the reading was 1.7-6.1 times the noise
-    and m off by 0.03-0.06; with the true gas 1.1-2.6 and within 0.01 of the truth."""
+    the power law's per-row time constant (order 2 with ``second``, the per-row product of the
+    stages, ``tau`` their sum: ``+ second T1''``), smoothed zero-phase over ``smoothing``
+    seconds (the fit's filter time constant: what the SVF resolves; it keeps the inverse's noise
+    to a fraction of a kelvin, 1e-3 of psi). Sensor 1's reading lags the gas by its time
+    constant, hundreds of kelvin on load steps through the combustion path; on four drive cycles
+    whose sensors follow (mass flow x T)^-m the misfit with the reading was 1.7-6.1 times the
+    noise and m off by 0.03-0.06; with the true gas 1.1-2.6 and within 0.01 of the truth."""
     slope = np.gradient(t1, ts)
     raw = t1 + tau * slope
     if second is not None:  # an order-2 inverse: second = the product of the stages

@@ -220,7 +220,7 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
     if shared is None:
         return None
     _, statistic = _misfit(estimate)
-    if not statistic <= GAP_THRESHOLD and not _sheaths(estimate.time_constants, shared):
+    if not statistic <= GAP_THRESHOLD and _absorbs_misfit(estimate.time_constants) is not None:
         return shared
     conf = estimate.confidence
     if conf is None:
@@ -241,12 +241,17 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
 _SHEATH_SHARE = 0.5
 
 
-def _sheaths(taus: tuple[tuple[float, ...], tuple[float, ...]],
-             shared: tuple[float, float]) -> bool:
-    """The shared time constants are each sensor's second (fast) stage and short against the
-    faster sensor's dominant time constant (``_SHEATH_SHARE``)."""
-    return (all(len(t) == 2 and shared[i] == t[1] for i, t in enumerate(taus))
-            and max(shared) < _SHEATH_SHARE * min(taus[0][0], taus[1][0]))
+def _absorbs_misfit(taus: tuple[tuple[float, ...], tuple[float, ...]]
+                    ) -> tuple[float, float] | None:
+    """The shared time constants (:func:`_shared_time_constant`) that a misfitting model may
+    have used to absorb its error: all but a pair of sheaths, i.e. each sensor's second (fast)
+    stage, short against the faster sensor's dominant time constant (``_SHEATH_SHARE``)."""
+    shared = _shared_time_constant(taus)
+    if shared is None:
+        return None
+    sheaths = (all(len(t) == 2 and shared[i] == t[1] for i, t in enumerate(taus))
+               and max(shared) < _SHEATH_SHARE * min(taus[0][0], taus[1][0]))
+    return None if sheaths else shared
 
 
 def _relative_std(estimate: PairEstimate, sensor: int, stage: int) -> float:
@@ -369,8 +374,8 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                     f"thermal sensor has) and the model does not explain the signals (misfit "
                     f"{mu:.3g} x the noise): no reconstruction can be trusted; "
                     f"{_advice(estimate)}, or try --order 1 or dualprobe diagnose")
-        shared = _shared_time_constant(estimate.time_constants)
-        if shared is not None and not _sheaths(estimate.time_constants, shared):
+        shared = _absorbs_misfit(estimate.time_constants)
+        if shared is not None:
             raise EstimationError(
                 f"both sensors' fitted dynamics share a time constant ({shared[0]:.3g} and "
                 f"{shared[1]:.3g} s) and the model does not explain the signals (misfit "
