@@ -24,6 +24,7 @@ from dualprobe.estimation import field
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.io import EstimationError, InputError
 from dualprobe.report.dcm import dcm_text
+from dualprobe.workflows import characterise as characterise_module
 from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle
 
@@ -349,3 +350,17 @@ def test_uncertainty_of_a_sub_model_whose_full_order_2_solution_is_infeasible() 
     assert model is not None and model.reference_flow is not None
     truth = 2.9 * (model.reference_flow / 20.0) ** -0.62
     assert abs(result.estimate.time_constants[0][0] / truth - 1.0) < 0.05
+
+
+def test_a_gain_ratio_without_a_value_is_named_not_printed_as_nan(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An order-2 fit whose gain ratio had no finite value (a 50 Hz pair with a jittered clock)
+    fell back to first order with the message "the second-order fit's gain ratio (nan) is not
+    determined". The number a user reads is named, not printed as nan."""
+    monkeypatch.setattr(characterise_module, "undetermined_gain", lambda estimate: math.nan)
+    rec = _record(CASES[1])
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.flow,
+                                 flow_column="flow", reconstruction="smoother")
+    why = str(result.estimate.identifiability["order_fallback"])
+    assert "gain ratio (no finite value)" in why and "nan" not in why.lower().split()
+    assert "(nan)" not in result.summary()

@@ -18,8 +18,9 @@ import scipy.signal
 
 from dualprobe.estimation import engine, flow
 from dualprobe.estimation.engine import Fit
+from dualprobe.estimation.orders import sensor_order_fits
 
-__all__ = ["Found", "gas_level", "search", "sharper"]
+__all__ = ["Found", "gas_level", "one_sided_misfit", "search", "sharper"]
 
 # (the optimum of (m, b x span, c x span^2), the schedule of those parameters, the level's mean,
 # its 5-95 % span)
@@ -63,13 +64,24 @@ def sharper(
     return min(options, key=lambda f: float(f[0].fun)) if options else None
 
 
+def one_sided_misfit(fit: Fit) -> float:
+    """The misfit of an order-2 fit with a second stage on one sensor only, the better side:
+    no stage can be common to both sensors, so none can absorb a missing level (the sub-models
+    of :func:`dualprobe.estimation.orders.sensor_order_fits`)."""
+    subs = sensor_order_fits(fit)
+    values = [subs[side].mu for side in ((2, 1), (1, 2))]
+    finite = [v for v in values if math.isfinite(v)]
+    return min(finite) if finite else math.inf
+
+
 def search(
     t1: np.ndarray, t2: np.ndarray, fit: Fit, signal: flow.FlowSignal, start: np.ndarray,
-    level: np.ndarray,
+    level: np.ndarray, *, one_sided: bool = False,
 ) -> Found | None:
     """Nelder-Mead over (m, b x span, c x span^2) of the scheduled fit's misfit for one gas
     level: (the optimum, the schedule of those parameters, the level's mean, its 5-95 % span);
-    None when the level does not vary or no fit is finite."""
+    None when the level does not vary or no fit is finite. ``one_sided`` (an order-2 ``fit``):
+    the misfit is :func:`one_sided_misfit`'s."""
     reference = float(np.mean(level))
     lo, hi = np.quantile(level, [0.05, 0.95])
     span = float(hi - lo)
@@ -89,7 +101,10 @@ def search(
             return _NO_FIT
         res = engine.fit(t1, t2, fit.ts, tf=fit.tf, order=fit.order, static=fit.static,
                          sigma=fit.sigma, schedule=schedule(p), windows=fit.windows or None)
-        return _NO_FIT if res is None or not math.isfinite(res.misfit) else res.misfit
+        if res is None:
+            return _NO_FIT
+        value = one_sided_misfit(res) if one_sided else res.misfit
+        return value if math.isfinite(value) else _NO_FIT
 
     start = np.asarray(start, dtype=float)
     best = scipy.optimize.minimize(

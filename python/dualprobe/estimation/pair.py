@@ -14,11 +14,12 @@ import numpy as np
 from dualprobe.estimation.confidence import confidence
 from dualprobe.estimation.difference import characterise_difference
 from dualprobe.estimation.engine import STATIC_MODELS
-from dualprobe.estimation.field import FlowModel, flow_law, track_without_flow
+from dualprobe.estimation.field import FlowModel, flow_law
 from dualprobe.estimation.flow import check_flow, evidence
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.estimation.svf import characterise_svf
+from dualprobe.estimation.without_flow import track_without_flow
 from dualprobe.io import InputError
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 

@@ -220,7 +220,9 @@ def characterise_arrays(
                        f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine"
                        + common)
             elif gain is not None:
-                why = (f"the second-order fit's gain ratio ({gain:.3g}) is not determined by "
+                # a NaN ratio (no finite estimate) is named as such, not printed as "nan"
+                value = f"{gain:.3g}" if math.isfinite(gain) else "no finite value"
+                why = (f"the second-order fit's gain ratio ({value}) is not determined by "
                        "the data: its second stages and static map trade against each other")
             else:
                 why = ("the second-order fit's time constants " + describe_stages(loose, columns)
