@@ -148,6 +148,32 @@ def test_a_sheath_on_one_sensor_is_identified_with_the_mass_flow(
     assert result.model_check is not None and result.model_check.adequate
 
 
+def test_an_order_2_power_law_that_fails_without_its_level_is_run_with_it() -> None:
+    """50 Hz, sheaths 0.38 / 0.28 s on 6.6 / 17 s elements, a jittered clock, the mass flow as
+    the column: the level term was decided at first order, but the order-2 characterisation
+    at the power law alone was not usable, so the pair was answered at first order, 2.72x the
+    oracle (294 times the noise). It is now run with the level decided (measured: order 2,
+    1.17x, per-row time constants 1.3 %, the residual misfit of 2.0 times the noise
+    reported)."""
+    rec = record(1001, duration=900.0, rate=50.0, tau=6.62, ratio=2.61, m=0.48,
+                 sheaths=(0.38, 0.28), noise=0.056, adc=0.0, jitter=0.002)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.level_reference is not None
+    assert [len(t) for t in result.estimate.time_constants] == [2, 2]
+    # issue 11's bounds: per-row time constants within 5 %, the gas within 1.5x the oracle
+    # and 15 % of the raw fast sensor (measured 6 %)
+    assert max(_tau_errors(result, rec)) < 0.05
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, rec.gas)
+    assert ours <= 1.5 * _oracle_rmse(rec)
+    assert ours <= 0.15 * _rmse(rec.t1, rec.gas)
+    assert result.model_check is not None
+    if not result.model_check.adequate:
+        assert result.model_check.reasons
+
+
 def test_without_flow_meets_the_issue_bound() -> None:
     """The same recording without the flow column: tracked, within 2.5x the oracle (1.30x).
     The summary says that T_g_std leaves out the tracked time constants' own error (on
@@ -161,9 +187,11 @@ def test_without_flow_meets_the_issue_bound() -> None:
     assert TRACKED_STD_NOTE in result.summary()
 
 
-@pytest.mark.parametrize("seed,duration,fallback", [(12, 1200.0, False), (6, 600.0, True)])
-def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(seed: int, duration: float,
-                                                                   fallback: bool) -> None:
+@pytest.mark.parametrize("seed,duration,fallback", [
+    (12, 1200.0, None), (6, 600.0, "gave both sensors a time constant"),
+    (10, 600.0, "are not determined by the data")])
+def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(
+        seed: int, duration: float, fallback: str | None) -> None:
     """50 Hz, tau 2 / 8 s, m 0.35, 0.1 K noise, the mass flow as the column: order 2 gave both
     sensors a common slow "stage" that absorbed the missing level term. Seed 12: 276 / 275 s,
     the model "adequate" and the gas 2,081 K RMS off with exit 0; seed 6 (600 s): 52.6 / 44 s,
@@ -171,12 +199,14 @@ def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(seed: int, dur
     determine, gave 0.86-0.97 K for all 12 (raw fast sensor about 11 K). Since the level term
     is decided at first order, seed 12's order-2 fit with the level no longer takes a shared
     stage and the order choice itself gives first order (1.03x the oracle); seed 6 still
-    falls back from a 52.6 / 44 s pair."""
+    falls back from a 52.6 / 44 s pair (1.02x), and seed 10 from stages the data do not
+    determine (61.6 s +- 168 %: 1.02x), the fallback's other branch."""
     rec = record(seed, duration=duration, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
                                  flow_column="mdot", reconstruction="smoother")
     assert [len(t) for t in result.estimate.time_constants] == [1, 1]
-    assert ("order_fallback" in result.estimate.identifiability) == fallback
+    why = result.estimate.identifiability.get("order_fallback")
+    assert (why is None) if fallback is None else (fallback in str(why))
     assert max(_tau_errors(result, rec)) < 0.05
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
