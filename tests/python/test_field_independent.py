@@ -115,13 +115,14 @@ def test_a_sheath_behind_a_fast_element_is_identified_with_the_flow(column: str)
     _assert_issue_bounds(result, rec, gains)
 
 
-@pytest.mark.parametrize("seed,tau,ratio,m,sheaths,gains", [
-    (3000, 3.04, 3.6, 0.53, (0.4, 0.0), (1.0, 1.0)),
-    (81005, 7.78, 2.33, 0.35, (0.42, 0.0), (1.0, 1.0)),
-    (82002, 2.18, 2.99, 0.6, (0.0, 0.3), (1.014, 0.997))])
+@pytest.mark.parametrize("seed,duration,tau,ratio,m,sheaths,gains", [
+    (3000, 900.0, 3.04, 3.6, 0.53, (0.4, 0.0), (1.0, 1.0)),
+    (3000, 1800.0, 3.04, 3.6, 0.53, (0.4, 0.0), (1.0, 1.0)),
+    (81005, 900.0, 7.78, 2.33, 0.35, (0.42, 0.0), (1.0, 1.0)),
+    (82002, 900.0, 2.18, 2.99, 0.6, (0.0, 0.3), (1.014, 0.997))])
 def test_a_sheath_on_one_sensor_is_identified_with_the_mass_flow(
-        seed: int, tau: float, ratio: float, m: float, sheaths: tuple[float, float],
-        gains: tuple[float, float]) -> None:
+        seed: int, duration: float, tau: float, ratio: float, m: float,
+        sheaths: tuple[float, float], gains: tuple[float, float]) -> None:
     """10 Hz, 0.05 K, ADC steps, a sheath on ONE sensor, the mass flow as the column. The
     first-order decisions could not see past the sheath, which dominates the first-order
     misfit: 3000's level term took it from 264 to 224 times the noise (not significant), and
@@ -131,21 +132,23 @@ def test_a_sheath_on_one_sensor_is_identified_with_the_mass_flow(
     sensor only, where no stage can be common (1.03x, 1.01x). 82002 (gains 1.014 / 0.997): the
     unit order-2 model stood in a shared 269 / 277 s pole pair for the gain mismatch, even at
     the TRUE schedule, and fell back to first order at 2.34x; the affine model is taken
-    instead (1.01x)."""
-    rec = record(seed, duration=900.0, rate=10.0, tau=tau, ratio=ratio, m=m, sheaths=sheaths,
-                 gains=gains)
+    instead (1.01x). 3000 over 30 min: the re-searched exponent's order-2 run had no positive
+    stages, and the law was given up (first order, 1.89x); the last usable exponent now stays
+    (1.02x)."""
+    rec = record(seed, duration=duration, rate=10.0, tau=tau, ratio=ratio, m=m,
+                 sheaths=sheaths, gains=gains)
     result = _with_mass_flow(rec)
     model = result.estimate.flow_model
     assert model is not None and model.kind == "power_law"
     # issue 11: the sheath stage identified when present (on that sensor only), per-row time
-    # constants within 5 % RMS (measured 0.4-0.8 %), the gas within 1.5x the oracle (1.01-1.03x)
+    # constants within 5 % RMS (measured 0.2-0.8 %), the gas within 1.5x the oracle (1.01-1.03x)
     # and 15 % of the raw fast sensor (9-13 %); each model explains the data
     sheathed = [i for i, s in enumerate(sheaths) if s > 0.0]
     assert [len(t) for t in result.estimate.time_constants] == [
         2 if i in sheathed else 1 for i in range(2)]
     stage = result.estimate.time_constants[sheathed[0]][1] / model.psi
     truth = (rec.sheath1, rec.sheath2)[sheathed[0]]
-    assert float(np.sqrt(np.mean((stage / truth - 1.0) ** 2))) < 0.10  # measured 0.3-2.5 %
+    assert float(np.sqrt(np.mean((stage / truth - 1.0) ** 2))) < 0.10  # measured 0.2-2.5 %
     _assert_issue_bounds(result, rec, gains)
     assert result.model_check is not None and result.model_check.adequate
 
