@@ -68,8 +68,8 @@ def one_sided_misfit(fit: Fit) -> float:
     """The misfit of an order-2 fit with a second stage on one sensor only, the better side:
     no stage can be common to both sensors, so none can absorb a missing level (the sub-models
     of :func:`dualprobe.estimation.orders.sensor_order_fits`)."""
-    subs = sensor_order_fits(fit)
-    values = [subs[side].mu for side in ((2, 1), (1, 2))]
+    subs = sensor_order_fits(fit, ((2, 1), (1, 2)))
+    values = [sub.mu for sub in subs.values()]
     finite = [v for v in values if math.isfinite(v)]
     return min(finite) if finite else math.inf
 

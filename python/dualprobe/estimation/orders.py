@@ -45,14 +45,16 @@ class SubModelFit:
         return float(self.eigenvalues[0])
 
 
-def sensor_order_fits(res: Fit) -> dict[tuple[int, int], SubModelFit]:
+def sensor_order_fits(res: Fit, which: tuple[tuple[int, int], ...] = ((2, 2), (1, 2), (2, 1),
+                                                                      (1, 1)),
+                      ) -> dict[tuple[int, int], SubModelFit]:
     """The order-2 fit's projected scatter and noise covariance solved with the sensors'
-    orders (2, 2), (1, 2), (2, 1) and (1, 1): the d_i columns (1 and 3 of the layout) are
+    orders ``which`` (all four by default): the d_i columns (1 and 3 of the layout) are
     dropped from both."""
     scatter, cov, tf = res.scatter, res.noise, res.tf
     size = scatter.shape[0]
     out: dict[tuple[int, int], SubModelFit] = {}
-    for orders in ((2, 2), (1, 2), (2, 1), (1, 1)):
+    for orders in which:
         keep = [i for i in range(size) if not (i == 1 and orders[0] == 1)
                 and not (i == 3 and orders[1] == 1)]
         sub, mu = engine.solve_gtls(scatter[np.ix_(keep, keep)], cov[np.ix_(keep, keep)])

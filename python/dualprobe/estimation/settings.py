@@ -16,6 +16,7 @@ __all__ = [
     "KAPPA",
     "RECORD_FRACTION",
     "RESOLUTION_FLOOR",
+    "SHARED_FACTOR",
     "choose_filter_time_constant",
     "discretisation_noise_std",
     "gap_statistics",
@@ -28,6 +29,10 @@ __all__ = [
 # >= 160 (and were estimated to 2 %).
 GAP_THRESHOLD = 10.0
 RECORD_FRACTION = 1.0 / 3.0  # time constants longer than this share of the record: implausible
+# Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
+# factor common to both transfer functions cancels from the cross-relation (it multiplies both
+# sides), so a pair cannot determine it. Seen: 47.6 and 50.1 s for true 4.7 / 9.4 s elements.
+SHARED_FACTOR = 0.2
 KAPPA = {1: 0.5, 2: 0.25}  # tf / tau_fast, see dualprobe.reference.svf
 RESOLUTION_FLOOR = 1e-6  # noise std used at least this fraction of the signal's std
 DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling classification

@@ -50,6 +50,7 @@ from dualprobe.estimation.settings import (
     KAPPA,
     RECORD_FRACTION,
     RESOLUTION_FLOOR,
+    SHARED_FACTOR,
     choose_filter_time_constant,
     discretisation_noise_std,
     gap_statistics,
@@ -379,17 +380,15 @@ class _SvfRun:
         return self.finish(low, reduced_order, identifiability)
 
 
-
-# A unit order-2 model's slow stages, one per sensor, within this share of each other and this
-# many times both fast stages: a factor (1 + s1 p) / (1 + s2 p) that acts as the gain ratio
-# s1 / s2 above 1 / s1, i.e. a gain mismatch (as workflows.checks.SHARED_FACTOR for sharing).
-_MIMIC_SHARE = 0.2
+# A unit order-2 model's slow stages, one per sensor, shared (SHARED_FACTOR) and this many times
+# both fast stages: a factor (1 + s1 p) / (1 + s2 p) that acts as the gain ratio s1 / s2 above
+# 1 / s1, i.e. a gain mismatch.
 _MIMIC_SPAN = 10.0
 
 
 def _mimics_gain(unit: Fit) -> bool:
     """Whether the unit order-2 model stands in a nearly shared slow pole pair for a gain
-    mismatch (``_MIMIC_SHARE``, ``_MIMIC_SPAN``). Gains 1.014 / 0.997 on a drive cycle with a
+    mismatch (``SHARED_FACTOR``, ``_MIMIC_SPAN``). Gains 1.014 / 0.997 on a drive cycle with a
     sheath on the slow sensor: unit gave 223 / 231 s with 1.4 / 5.5 s at the TRUE schedule,
     misfit 4.3 times the noise (and the pair fell back to first order at 2.3x the oracle);
     affine gave 2.18 s and 6.52 / 0.29 s at 1.03, the truth."""
@@ -400,8 +399,9 @@ def _mimics_gain(unit: Fit) -> bool:
         return False
     slow = (taus[0][0], taus[1][0])
     fast = max(taus[0][1], taus[1][1])
-    shared = abs(slow[0] - slow[1]) <= _MIMIC_SHARE * max(slow)
+    shared = abs(slow[0] - slow[1]) <= SHARED_FACTOR * max(slow)
     return shared and min(slow) > _MIMIC_SPAN * fast
+
 
 def characterise_svf(
     t1: np.ndarray,

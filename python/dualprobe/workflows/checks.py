@@ -44,7 +44,7 @@ import numpy as np
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
 from dualprobe.estimation.confidence import RELATIVE_LIMIT
 from dualprobe.estimation.orders import COMPLEX_NOTE
-from dualprobe.estimation.settings import RECORD_FRACTION
+from dualprobe.estimation.settings import RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
 
 __all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "describe_stages",
@@ -52,10 +52,6 @@ __all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "describe_
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
-# Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
-# factor common to both transfer functions cancels from the cross-relation (it multiplies both
-# sides), so a pair cannot determine it. Seen: 47.6 and 50.1 s for true 4.7 / 9.4 s elements.
-SHARED_FACTOR = 0.2
 # Two sensors lagging the same gas: T_g - T_fast ~ tau_fast T' and T_slow - T_fast ~ (tau_slow -
 # tau_fast) T', so the gas departs from the fast sensor by about tau_fast / (tau_slow - tau_fast)
 # times the sensors' mutual disagreement (at least once: the unresolved fluctuation). Measured on
