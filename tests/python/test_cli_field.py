@@ -42,6 +42,7 @@ def test_flow_json_output_and_report(drive_csv: tuple[Path, sim.FieldRecording],
     # the simulator's exponent is 0.5; issue 11 asks m within 0.05
     assert abs(model["exponent"] - 0.5) < 0.05
     assert model["exponent_std"] > 0.0
+    assert model["delay"] == 0.0  # the simulator's flow is the sensors' own
     assert len(model["curve"]["flow"]) == len(model["curve"]["time_constants"][0])
     assert doc["model_check"]["adequate"] in (True, False)
     _, columns, _ = load_columns(out_path, ["T_g_hat", "T_g_std", "tau1", "tau2"])
@@ -54,6 +55,27 @@ def test_flow_json_output_and_report(drive_csv: tuple[Path, sim.FieldRecording],
     for name in names:
         assert (report / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "tau_flow.png" in out
+
+
+def test_a_leading_flow_column_gets_its_delay(drive_csv: tuple[Path, sim.FieldRecording],
+                                              tmp_path: Path,
+                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """The same recording with the flow column 0.4 s ahead of the sensors (an intake meter):
+    the JSON's delay, the summary's line and the DCM's entry say so."""
+    _, rec = drive_csv
+    lead = tmp_path / "lead.csv"
+    write_columns(lead, {"t": rec.t, "T_m1": rec.t1, "T_m2": rec.t2,
+                         "mdot": np.interp(rec.t + 0.4, rec.t, rec.flow)})
+    doc_path, dcm = tmp_path / "lead.json", tmp_path / "lead.dcm"
+    assert main(["characterise", str(lead), "--flow", "mdot", "--json", str(doc_path),
+                 "--dcm", str(dcm)]) == 0
+    out = capsys.readouterr().out
+    model = json.loads(doc_path.read_text())["flow_model"]
+    # half a row (0.05 s) is the resolution the delay is kept to; measured 0.40
+    assert abs(model["delay"] - 0.4) < 0.05, model["delay"]
+    assert abs(model["exponent"] - 0.5) < 0.05
+    assert f"follow the flow column {model['delay']:+.3g} s later" in out
+    assert "DP_TAU_S1_FLOW_DELAY" in dcm.read_text()
 
 
 def test_report_on_a_file_is_refused(drive_csv: tuple[Path, sim.FieldRecording],

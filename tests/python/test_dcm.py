@@ -77,6 +77,18 @@ def test_kennlinie_from_the_curve_and_from_the_power_law(tmp_path: Path) -> None
     assert [p.name for p in parse(path).get_parameters()] == ["DP_TAU_S1", "DP_TAU_S2"]
 
 
+def test_a_flow_delay_is_a_festwert_per_sensor(tmp_path: Path) -> None:
+    model = {"kind": "power_law", "exponent": 0.5, "reference_flow": 20.0,
+             "flow_range": [5.0, 80.0], "delay": 0.35}
+    path = tmp_path / "delay.dcm"
+    write_dcm(document(flow_model=model), path)
+    values = {p.name: (p.value, p.unit) for p in parse(path).get_parameters()}
+    assert values["DP_TAU_S1_FLOW_DELAY"] == (0.35, "s")
+    assert values["DP_TAU_S2_FLOW_DELAY"] == (0.35, "s")
+    write_dcm(document(flow_model={**model, "delay": 0.0}), path)  # no delay: no entry
+    assert not [p.name for p in parse(path).get_parameters() if "DELAY" in p.name]
+
+
 def test_refusals() -> None:
     with pytest.raises(InputError, match="letters, digits"):
         dcm_text(document(), names=("TAU 1", "TAU2"))

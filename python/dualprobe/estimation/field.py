@@ -63,6 +63,7 @@ class FlowModel:
     level_reference: float | None = None
     level_curvature: float = 0.0  # c, per unit of T squared
     level_parameters: tuple[float, float] = (0.0, 0.0)  # b and c x the level's 5-95 % span^1,2
+    delay: float = 0.0  # s: psi follows the flow column this much later (flow_timing)
 
     @property
     def scheduled(self) -> bool:

@@ -14,8 +14,9 @@ import numpy as np
 from dualprobe.estimation.confidence import confidence
 from dualprobe.estimation.difference import characterise_difference
 from dualprobe.estimation.engine import STATIC_MODELS
-from dualprobe.estimation.field import FlowModel, flow_law
+from dualprobe.estimation.field import FlowModel
 from dualprobe.estimation.flow import check_flow, evidence
+from dualprobe.estimation.flow_timing import timed_flow_law
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.estimation.svf import characterise_svf
@@ -191,7 +192,7 @@ def characterise_pair(
         if first.status != "ok":
             return base
         if signal is not None:
-            estimate, model = flow_law(a, b, first, signal, run)
+            estimate, model, signal = timed_flow_law(a, b, first, signal, run)
             if model.level_reference is not None:
                 # the exponent's uncertainty with the level term: its per-row factor as fitted
                 factor = model.psi / signal.psi(model.exponent)

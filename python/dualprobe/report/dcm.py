@@ -15,7 +15,10 @@ Written from the characterisation's JSON document (``Characterisation.to_json_di
 * a gas-level term of the flow law (``flow_model.level_reference`` given): ``FESTWERT
   <name>_LEVEL`` (b, per unit of the temperature columns), ``<name>_LEVEL2`` (c, per unit
   squared; 0 when the document has none) and ``<name>_LEVEL_REF`` (the level the curve holds
-  at): tau(flow, T) = curve(flow) exp(b dT + c dT^2), dT = T - T_ref.
+  at): tau(flow, T) = curve(flow) exp(b dT + c dT^2), dT = T - T_ref;
+* a flow delay (``flow_model.delay`` not 0): ``FESTWERT <name>_FLOW_DELAY`` (s): the curve
+  holds for the flow channel that many seconds earlier (transport from where the flow is
+  measured to the sensors).
 
 Every entry has ``LANGNAME`` (what it is, which column), ``EINHEIT_W "s"`` and for curves
 ``EINHEIT_X`` (the flow unit, ``"-"`` when unknown). Names are configurable (one per sensor).
@@ -188,6 +191,11 @@ def dcm_text(
             lines.append("")
             lines += _festwert(f"{name}_LEVEL_REF", f"Gas temperature of {what}'s curve",
                                reference, "T")
+            lines.append("")
+        if isinstance(model, Mapping) and model.get("delay"):
+            (delay,) = _finite([model.get("delay")], "the flow delay")
+            lines += _festwert(f"{name}_FLOW_DELAY", f"Delay from the flow channel to {what}'s "
+                               "time constants", delay)
             lines.append("")
         for key, label in (("time_constants_heat", "HEAT"), ("time_constants_cool", "COOL")):
             if sensor.get(key):

@@ -94,6 +94,7 @@ class Characterisation:
                                if model.kind == "power_law" else (
                                    model.exponent_std if model.kind == "curve" else 0.0),
                                "reference_flow": model.reference_flow,
+                               "delay": model.delay,
                                "level_sensitivity": model.level_sensitivity,
                                "level_reference": model.level_reference,
                                "level_curvature": model.level_curvature,
@@ -218,6 +219,13 @@ class Characterisation:
                                 if model.kind == "power_law" else None)
                 law = "power law" if model.kind == "power_law" else "free curve (monotone)"
                 lines.append(f"  flow law: {law}, tau ~ flow^-m, m = {exponent}")
+                if model.delay != 0.0:
+                    lines.append(f"  the sensors follow the flow column {model.delay:+.3g} s "
+                                 "later (transport delay; negative: the column lags them)")
+                refresh = model.evidence.get("flow_refresh_rows", 1.0)
+                if refresh > 1.0:
+                    lines.append(f"  note: the flow column is held for {refresh:.0f} rows per "
+                                 "refresh; interpolated between its refreshes")
                 if model.level_reference is not None:
                     b, c = model.level_sensitivity, model.level_curvature
                     ref = f"{model.level_reference:.4g}"
