@@ -11,9 +11,9 @@ sensors' instants. Recordings rarely give it exactly:
   quantised or piecewise-constant flow, whose runs are irregular.
 * **delayed**: the ECU's mass flow is measured at the intake (or filtered in the ECU), the
   exhaust flow at the sensors follows it by a transport delay of a few tenths of a second.
-  psi is then ``(v(t - d) / v_ref)^m``; :func:`search_delay` finds d (either sign) by the same
-  profile criterion as the exponent (:mod:`dualprobe.estimation.flow`): the misfit of the
-  chosen model scheduled by the shifted flow.
+  psi is then ``(v(t - d) / v_ref)^m``; :func:`timed_flow_law` finds d (either sign) by the
+  same profile criterion as the exponent (:mod:`dualprobe.estimation.flow`, here
+  :func:`delay_profile`): the misfit of the model scheduled by the shifted flow.
 
 Measured (separate generator, 10 Hz, sheaths 0.5 / 0.3 s, mass flow as the column): a flow
 lagging by 0.1 s lost the sheath on sensor 2 (1.43x the oracle, misfit 2.0); by 0.5 s the pair
