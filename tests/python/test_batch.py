@@ -78,8 +78,14 @@ def test_pooling_weights_by_uncertainty() -> None:
     wild["flow_model"]["exponent_std"] = 5.0
     wild["sensors"][0]["time_constants_std"] = [50.0]
     wild["sensors"][1]["time_constants_std"] = [50.0]
+    for document in documents:
+        document["flow_model"]["delay"] = 0.3 + 0.02 * float(rng.standard_normal())
+    wild["flow_model"]["delay"] = -1.9  # one law that absorbed something else
     pooled = pool_documents([*documents, wild])
     assert pooled["n_with_flow_model"] == 41
+    delay = pooled["flow_delay"]
+    assert delay["n"] == 41 and delay["median"] == pytest.approx(0.3, abs=0.02)
+    assert delay["min"] == -1.9
     for sensor, tau in zip(pooled["sensors"], (2.0, 6.0), strict=True):
         assert sensor["weighting"] == "inverse-variance"
         assert sensor["exponent"] == pytest.approx(EXPONENT, abs=0.01)
@@ -104,6 +110,7 @@ def test_pooling_weights_by_uncertainty() -> None:
     pooled = pool_documents([curve_doc, curve_doc, curve_doc, {"sensors": []}])
     first = pooled["sensors"][0]
     assert first["weighting"] == "equal (no uncertainties)" and math.isnan(first["exponent"])
+    assert pooled["flow_delay"]["n"] == 0 and math.isnan(pooled["flow_delay"]["median"])
     assert first["curve"]["exponent"] == pytest.approx(0.5, abs=1e-9)
 
 

@@ -7,7 +7,8 @@ is NaN, never an error:
 
 * ``sensors[i].time_constants[0]`` (dominant) and ``sensors[i].time_constants_std[0]``;
 * ``flow_model``: ``kind`` (``"constant"`` or absent: no curve), ``exponent`` (one value or one
-  per sensor) and ``exponent_std``, ``reference_flow``, optionally ``flow_range`` and
+  per sensor) and ``exponent_std``, ``reference_flow``, ``delay`` (pooled by its median),
+  optionally ``flow_range`` and
   ``curve = {"flow": [...], "time_constants": [[...] per sensor], "time_constants_std": ...}``.
 
 Each recording's curve is taken in log space, ``ln tau(v)``: from its ``curve`` (log-log
@@ -215,4 +216,19 @@ def pool_documents(documents: Sequence[Mapping[str, Any]], sensors: int = 2) -> 
         "n_recordings": len(documents),
         "n_with_flow_model": with_flow,
         "sensors": [_pool_sensor(documents, index) for index in range(sensors)],
+        "flow_delay": _pool_delay(documents),
     }
+
+
+def _pool_delay(documents: Sequence[Mapping[str, Any]]) -> dict[str, float]:
+    """The flow delay over the recordings with a flow law (``flow_model.delay``, s): median
+    (one recording whose law absorbed something else does not move it), range and count; NaN
+    when none has one."""
+    delays = np.array([value(d, "flow_model", "delay") for d in documents
+                       if isinstance(d.get("flow_model"), Mapping)
+                       and d["flow_model"].get("kind") not in (None, "constant")])
+    delays = delays[np.isfinite(delays)]
+    if delays.size == 0:
+        return {"median": math.nan, "min": math.nan, "max": math.nan, "n": 0}
+    return {"median": float(np.median(delays)), "min": float(delays.min()),
+            "max": float(delays.max()), "n": int(delays.size)}
