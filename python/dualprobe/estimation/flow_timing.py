@@ -43,17 +43,19 @@ from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 
-__all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law", "unhold"]
+__all__ = ["DELAY_RANGE", "MAX_REFRESH", "delay_profile", "shifted", "timed_flow_law", "unhold"]
 
 DELAY_RANGE = 2.0  # s: |d| searched (intake-to-exhaust transport and ECU filters: 0.05-1 s)
 DELAY_STEP = 0.25  # s: coarse grid before Brent (the profile is smooth on this scale)
 DELAY_TOLERANCE = 0.01  # s
 _REGULAR_SHARE = 0.8  # share of runs within one row of the modal length for a refresh pattern
+MAX_REFRESH = 2.0  # s: the slowest logger refresh taken as a hold (rasters: 10 ms - 1 s)
 
 
-def unhold(values: np.ndarray) -> tuple[np.ndarray, int]:
+def unhold(values: np.ndarray, ts: float) -> tuple[np.ndarray, int]:
     """(the flow with held values interpolated between refresh rows, rows per refresh; 1:
-    not held, values unchanged)."""
+    not held, values unchanged). A refresh slower than ``MAX_REFRESH`` is no logger's: a
+    laboratory flow stepped at regular intervals (every 60 s) keeps its steps."""
     v = np.asarray(values, dtype=float)
     starts = np.concatenate([[0], np.flatnonzero(np.diff(v) != 0.0) + 1])
     runs = np.diff(starts)  # the last run is open-ended: not counted
@@ -62,7 +64,7 @@ def unhold(values: np.ndarray) -> tuple[np.ndarray, int]:
     lengths, counts = np.unique(runs, return_counts=True)
     k = int(lengths[np.argmax(counts)])
     regular = np.count_nonzero(np.abs(runs - k) <= 1) / runs.size
-    if k < 2 or regular < _REGULAR_SHARE:
+    if k < 2 or regular < _REGULAR_SHARE or k * ts > MAX_REFRESH:
         return v, 1
     rows = np.arange(v.size, dtype=float)
     return np.interp(rows, starts.astype(float), v[starts]), k
@@ -117,7 +119,7 @@ def timed_flow_law(
     flow replaces the one before when it fits better. Returns the estimate, the model (its
     ``delay``) and the flow signal the model's psi is a function of."""
     ts = fit_of(base).ts
-    values, refresh = unhold(signal.values)
+    values, refresh = unhold(signal.values, ts)
     if refresh > 1:
         signal = dataclasses.replace(signal, values=values)
     estimate, model = flow_law(t1, t2, base, signal, run)
