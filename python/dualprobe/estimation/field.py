@@ -24,8 +24,8 @@ from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 
-__all__ = ["FlowModel", "RunSvf", "effective_rows", "fit_of", "flow_law", "window_fits",
-           "windowed_time_constants"]
+__all__ = ["FlowModel", "RunSvf", "effective_rows", "fit_of", "flow_law", "scheduled_misfit",
+           "window_fits", "windowed_time_constants"]
 
 # run the SVF characterisation (orders, static model, identifiability) with a schedule psi
 class RunSvf(Protocol):
@@ -88,14 +88,22 @@ def exponent_misfit(t1: np.ndarray, t2: np.ndarray, like: Fit, signal: flow.Flow
     ``(v/v_ref)^m`` (``one_sided``, an order-2 ``like``: :func:`level.one_sided_misfit`)."""
 
     def misfit(m: float) -> float:
-        res = engine.fit(t1, t2, like.ts, tf=like.tf, order=like.order, static=like.static,
-                         hysteresis=like.hysteresis, sigma=like.sigma,
-                         schedule=signal.psi(m), windows=like.windows or None)
-        if res is None:
-            return math.inf
-        return level.one_sided_misfit(res) if one_sided else res.misfit
+        return scheduled_misfit(t1, t2, like, signal.psi(m), one_sided=one_sided)
 
     return misfit
+
+
+def scheduled_misfit(t1: np.ndarray, t2: np.ndarray, like: Fit, psi: np.ndarray, *,
+                     one_sided: bool = False) -> float:
+    """The smallest generalised eigenvalue of ``like``'s model (orders, static model, filter,
+    noise, windows) scheduled by ``psi``; inf when it does not solve (``one_sided``:
+    :func:`level.one_sided_misfit`)."""
+    res = engine.fit(t1, t2, like.ts, tf=like.tf, order=like.order, static=like.static,
+                     hysteresis=like.hysteresis, sigma=like.sigma, schedule=psi,
+                     windows=like.windows or None)
+    if res is None:
+        return math.inf
+    return level.one_sided_misfit(res) if one_sided else res.misfit
 
 
 def flow_law(

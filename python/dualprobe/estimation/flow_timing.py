@@ -24,13 +24,13 @@ fell to first order (1.82x, misfit 89); a flow held for 1 s, 1.81x. With both: 1
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable
 
 import numpy as np
-import scipy.optimize
 
-from dualprobe.estimation import engine, flow
+from dualprobe.estimation import flow
 from dualprobe.estimation.field import (
     FlowModel,
     RunSvf,
@@ -38,6 +38,7 @@ from dualprobe.estimation.field import (
     exponent_misfit,
     fit_of,
     flow_law,
+    scheduled_misfit,
 )
 from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
@@ -82,30 +83,14 @@ def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
 
 def delay_profile(misfit: Callable[[float], float], ts: float,
                   ) -> tuple[float, float]:
-    """(d, misfit(d)) minimising ``misfit`` over |d| <= DELAY_RANGE: a grid, then bounded Brent
-    between the best grid point's neighbours. NaN when nothing fits."""
-    cache: dict[float, float] = {}
-
-    def cached(d: float) -> float:
-        if d not in cache:
-            value = misfit(d)
-            cache[d] = value if math.isfinite(value) else math.inf
-        return cache[d]
-
+    """(d, misfit(d)) minimising ``misfit`` over |d| <= DELAY_RANGE: the exponent's search
+    (:func:`dualprobe.estimation.flow.search_exponent`: a grid, then bounded Brent) on a grid
+    of delays. NaN when nothing fits."""
+    cached = functools.cache(misfit)
     step = max(DELAY_STEP, ts)
     grid = np.arange(-DELAY_RANGE, DELAY_RANGE + step / 2, step)
-    values = np.array([cached(float(d)) for d in grid])
-    if not np.any(np.isfinite(values)):
-        return math.nan, math.inf
-    best = int(np.argmin(values))
-    lo, hi = float(grid[max(best - 1, 0)]), float(grid[min(best + 1, grid.size - 1)])
-    result = scipy.optimize.minimize_scalar(
-        lambda d: min(cached(float(d)), 1e300), bounds=(lo, hi), method="bounded",
-        options={"xatol": DELAY_TOLERANCE})
-    d = float(result.x)
-    if cached(d) <= values[best]:
-        return d, cached(d)
-    return float(grid[best]), float(values[best])
+    d, _ = flow.search_exponent(cached, grid=grid, tolerance=DELAY_TOLERANCE)
+    return (d, cached(d)) if math.isfinite(d) else (math.nan, math.inf)
 
 
 def timed_flow_law(
@@ -193,10 +178,7 @@ def _further(t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, model: Flow
         moved = shifted(signal, d, ts)
         psi = (model.curve.psi(moved.values) if model.curve is not None
                else model.psi * (moved.values / signal.values) ** model.exponent)
-        res = engine.fit(t1, t2, fit.ts, tf=fit.tf, order=fit.order, static=fit.static,
-                         hysteresis=fit.hysteresis, sigma=fit.sigma, schedule=psi,
-                         windows=fit.windows or None)
-        return math.inf if res is None else res.misfit
+        return scheduled_misfit(t1, t2, fit, psi)
 
     return delay_profile(misfit, ts)[0]
 

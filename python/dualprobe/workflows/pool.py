@@ -73,12 +73,20 @@ def _weighted(values: np.ndarray, variances: np.ndarray) -> tuple[float, float, 
     return float(np.mean(values)), spread, "equal (no uncertainties)"
 
 
+def _flow_law(document: Mapping[str, Any]) -> Mapping[str, Any] | None:
+    """The document's flow model when it is a law (not constant, not absent)."""
+    model = document.get("flow_model")
+    if not isinstance(model, Mapping) or model.get("kind") in (None, "constant"):
+        return None
+    return model
+
+
 def _recording_curve(
     document: Mapping[str, Any], sensor: int
 ) -> tuple[float, float, Any] | None:
     """(support low, high, f(v) -> (ln tau, var ln tau)) of one recording, None without one."""
-    model = document.get("flow_model")
-    if not isinstance(model, Mapping) or model.get("kind") in (None, "constant"):
+    model = _flow_law(document)
+    if model is None:
         return None
     curve = model.get("curve")
     if isinstance(curve, Mapping):
@@ -207,11 +215,7 @@ def _pool_sensor(documents: Sequence[Mapping[str, Any]], sensor: int) -> dict[st
 
 def pool_documents(documents: Sequence[Mapping[str, Any]], sensors: int = 2) -> dict[str, Any]:
     """The pooled document: per sensor the weighted time constant, exponent and curve."""
-    with_flow = sum(
-        1 for d in documents
-        if isinstance(d.get("flow_model"), Mapping)
-        and d["flow_model"].get("kind") not in (None, "constant")
-    )
+    with_flow = sum(1 for d in documents if _flow_law(d) is not None)
     return {
         "n_recordings": len(documents),
         "n_with_flow_model": with_flow,
@@ -225,8 +229,7 @@ def _pool_delay(documents: Sequence[Mapping[str, Any]]) -> dict[str, float]:
     (one recording whose law absorbed something else does not move it), range and count; NaN
     when none has one."""
     delays = np.array([value(d, "flow_model", "delay") for d in documents
-                       if isinstance(d.get("flow_model"), Mapping)
-                       and d["flow_model"].get("kind") not in (None, "constant")])
+                       if _flow_law(d) is not None])
     delays = delays[np.isfinite(delays)]
     if delays.size == 0:
         return {"median": math.nan, "min": math.nan, "max": math.nan, "n": 0}
