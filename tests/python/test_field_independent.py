@@ -5,6 +5,8 @@ true time-varying sensors (tests/python/field_oracle.py)."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 
@@ -276,13 +278,16 @@ def test_near_equal_sheaths_are_resolved_with_an_order_2_level(
     assert result.model_check is not None and result.model_check.adequate
 
 
-def test_near_equal_sheaths_with_a_residual_misfit_are_not_taken_for_a_common_factor() -> None:
+def test_near_equal_sheaths_are_not_taken_for_a_common_factor() -> None:
     """The 62000 pair over 30 min: order 2 found 0.89 / 1.09 s for sheaths of 0.82 / 1.01 s
     (at the reference flow), but over 18 000 rows its small misfit (1.54 times the noise) was
     significant, and a nearly shared pair of stages in a misfitting model was taken for a
     common factor absorbing model error: first order, 3.86x the oracle. Fast stages under
     half the dominant time constants are sheaths (the common factors were 24-4033 s): order 2
-    is kept, 1.14x, and the misfit is still reported."""
+    is kept (1.14x, the misfit reported). The misfit was the level term's gas level, smoothed
+    over tf and missing the fast load changes; with the level candidates of
+    ``level.candidates`` (measured: 0.80 / 0.99 s, per-row time constants 0.4 %, m 0.603 for
+    0.61, 1.01x, misfit 1.20 at 6.8 standard deviations) the model explains the data."""
     rec = record(62000, duration=1800.0, rate=10.0, tau=5.46, ratio=3.5, m=0.61,
                  sheaths=(0.69, 0.85))
     result = _with_mass_flow(rec)
@@ -291,7 +296,11 @@ def test_near_equal_sheaths_with_a_residual_misfit_are_not_taken_for_a_common_fa
     assert max(_tau_errors(result, rec)) < 0.05  # measured 0.5 %
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
-    assert result.model_check is not None and not result.model_check.adequate
+    model = result.estimate.flow_model
+    assert model is not None and abs(model.exponent - 0.61) < 0.05  # measured 0.603
+    # the generator's sensors follow the velocity (mass flow x T)^-m exactly, which the level
+    # term approximates to ~0.05 % in psi: nothing left that the noise does not explain
+    assert result.model_check is not None and result.model_check.adequate
 
 
 def test_asked_for_order_2_with_undetermined_stages_is_refused() -> None:
@@ -354,6 +363,51 @@ def test_a_flow_column_that_leads_lags_or_is_held(lead: float, hold: int) -> Non
     else:
         assert result.model_check.adequate
         assert ("flow column" in summary and "later" in summary) == (lead != 0.0)
+
+
+@pytest.mark.parametrize("seed,kw", [
+    (61000, {"tau": 3.93, "ratio": 3.54, "m": 0.57, "gains": (1.03, 1.03)}),
+    (61011, {"tau": 6.32, "ratio": 2.16, "m": 0.58}),
+])
+def test_the_gas_level_follows_fast_load_changes(seed: int, kw: dict[str, Any]) -> None:
+    """10 Hz, no sheath, the mass flow as the column (the sensors follow (mass flow x T)^-m).
+    The level term's gas level was sensor 1's inverse smoothed over the filter time constant
+    (about 2 s), which misses the gas's fast load changes, where psi is seen: misfit 5.1 and
+    6.3 times the noise (flagged beside a gas at 1.03x and 1.07x the oracle) and m 0.056 and
+    0.062 too large, beyond issue 11's 0.05. With the candidates of ``level.candidates``
+    (smoothed over tf / 4 or tf / 16 as well) measured: m 0.576 and 0.587, misfit 1.10 and
+    0.96, 1.05x and 1.02x."""
+    rec = record(seed, duration=900.0, **kw)
+    gains = kw.get("gains", (1.0, 1.0))
+    result = _with_mass_flow(rec)
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law" and model.level_reference is not None
+    assert abs(model.exponent - kw["m"]) < 0.05  # issue 11's bound
+    _assert_issue_bounds(result, rec, gains)
+    # the level term approximates the generator's (mass flow x T)^-m to ~0.05 % in psi: with
+    # the right gas level nothing is left that the noise does not explain
+    assert result.model_check is not None and result.model_check.adequate
+
+
+def test_a_located_delay_is_not_traded_for_the_level_term() -> None:
+    """10 Hz, near-equal sheaths 0.58 / 0.76 s on 2.7 / 10 s elements, gains 1.026 / 0.993,
+    the mass-flow column 0.1 s ahead. The delay located on the first-order power law is 0.174
+    s; with the level term, whose sharper gas level follows the load (and so the flow), the
+    law at d = 0 fitted as well (misfit 1.089 against 1.101, 0.5 standard deviations) and the
+    delay was dropped: 2.38x the oracle, called adequate. The located delay is now kept
+    unless d = 0 fits significantly better (measured 1.19x)."""
+    gains = (1.026, 0.993)
+    rec = record(91001, duration=900.0, tau=2.74, ratio=3.67, m=0.65, sheaths=(0.58, 0.76),
+                 gains=gains)
+    column = np.interp(rec.t + 0.1, rec.t, rec.mass_flow)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=column,
+                                 flow_column="mdot", reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law"
+    # located on the first-order law, which the sheaths bias (measured 0.174 s for 0.1 s)
+    assert 0.05 < model.delay < 0.2
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)
 
 
 def test_unit_gains_chosen_at_a_constant_schedule_do_not_hide_the_power_law() -> None:

@@ -300,23 +300,27 @@ def _level(
         misfit = level.one_sided_misfit(fit)
     if fit.hysteresis or (decided is None and misfit <= _LEVEL_MISFIT):
         return None
-    # the better of the two levels (same parameters): the inverse alone at 10 Hz gave m within
-    # 0.011-0.030 of the truth on 7 pairs (the reading 0.028-0.060; the better of the two,
-    # 0.011-0.045); on a 2 Hz pair with a 2.2 s element the inverse is coarse (m 0.590 for
-    # 0.65; the better of the two, 0.647)
-    levels = (level.gas_level(t1, tau / power.psi, fit.ts, fit.tf),
-              np.asarray(t1, dtype=float))
+    # the candidate levels (level.candidates): the better of sensor 1's inverse smoothed over
+    # tf and its reading, unless a sharper inverse explains the signals significantly better
+    usual, sharp = level.candidates(t1, tau / power.psi, fit.ts, fit.tf)
     starts = [np.array([power.exponent, 0.0, 0.0])]
     if decided is not None:
         starts.append(np.array([decided.exponent, decided.level_parameters[0],
                                 decided.level_parameters[1]]))
-    found = [level.search(t1, t2, fit, signal, start, gas, one_sided=one_sided)
-             for gas in levels for start in starts]
-    options = [f for f in found if f is not None]
-    if not options:
-        return None
-    best, schedule, reference, span = min(options, key=lambda f: float(f[0].fun))
     n_eff = effective_rows(estimate)
+    chosen: list[level.Found] = []
+    for levels in (usual, sharp):
+        found = [level.search(t1, t2, fit, signal, start, gas, one_sided=one_sided)
+                 for gas in levels for start in starts]
+        options = [f for f in found if f is not None]
+        if options:
+            chosen.append(min(options, key=lambda f: float(f[0].fun)))
+    if not chosen:
+        return None
+    best, schedule, reference, span = chosen[0]
+    if len(chosen) == 2 and flow.evidence(float(best.fun), float(chosen[1][0].fun),
+                                          n_eff) > GAP_THRESHOLD:
+        best, schedule, reference, span = chosen[1]
     statistic = flow.evidence(misfit, float(best.fun), n_eff)
     psi = schedule(best.x)
     # how much the per-row time constants move against the power law alone (m moves too: on a
