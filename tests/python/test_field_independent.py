@@ -191,8 +191,7 @@ def test_without_flow_meets_the_issue_bound() -> None:
 
 
 @pytest.mark.parametrize("seed,duration,fallback", [
-    (12, 1200.0, None), (6, 600.0, "gave both sensors a time constant"),
-    (10, 600.0, "gave both sensors a time constant")])
+    (12, 1200.0, None), (6, 600.0, "gave both sensors a time constant"), (10, 600.0, None)])
 def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(
         seed: int, duration: float, fallback: str | None) -> None:
     """50 Hz, tau 2 / 8 s, m 0.35, 0.1 K noise, the mass flow as the column: order 2 gave both
@@ -202,9 +201,11 @@ def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(
     determine, gave 0.86-0.97 K for all 12 (raw fast sensor about 11 K). Since the level term
     is decided at first order, seed 12's order-2 fit with the level no longer takes a shared
     stage and the order choice itself gives first order (1.03x the oracle); seed 6 still
-    falls back from a 52.6 / 44 s pair (1.02x), and seed 10, which fell back from stages the
-    data did not determine (61.6 s +- 168 %), now from a shared 107 / 107 s pair: its flow
-    column is taken 0.049 s later (the misfit 1.82 -> 1.72), 1.01x."""
+    falls back from a 52.6 / 44 s pair (1.02x). Seed 10 fell back from stages the data did
+    not determine (61.6 s +- 168 %), then (its flow column taken 0.049 s later, the misfit
+    1.82 -> 1.72) from a shared 107 / 107 s pair; with the level term tried whenever the
+    power law misfits significantly, the order choice itself gives first order, as for seed
+    12."""
     rec = record(seed, duration=duration, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
     result = _with_mass_flow(rec)
     assert [len(t) for t in result.estimate.time_constants] == [1, 1]
@@ -218,12 +219,13 @@ def test_a_stage_shared_by_both_sensors_falls_back_to_first_order(
 def test_undetermined_stages_fall_back_to_first_order_with_their_reason(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The fallback's branch for order-2 stages the data do not determine (seed 10 reached it
-    until its flow delay was found; the detection itself: the asked-for order-2 refusal below):
-    first order, and the message names the stage and its uncertainty."""
+    until its flow delay was found; the detection itself: the asked-for order-2 refusal below),
+    on seed 6, whose order-2 fit falls back (above): first order, and the message names the
+    stage and its uncertainty."""
     monkeypatch.setattr(characterise_module, "spurious_shared_stage", lambda estimate: None)
     monkeypatch.setattr(characterise_module, "undetermined_stages",
                         lambda estimate: [(0, 61.6, 1.68)] if estimate.order == 2 else [])
-    rec = record(10, duration=600.0, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
+    rec = record(6, duration=600.0, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
     result = _with_mass_flow(rec)
     assert [len(t) for t in result.estimate.time_constants] == [1, 1]
     why = str(result.estimate.identifiability.get("order_fallback"))
@@ -386,6 +388,26 @@ def test_the_gas_level_follows_fast_load_changes(seed: int, kw: dict[str, Any]) 
     _assert_issue_bounds(result, rec, gains)
     # the level term approximates the generator's (mass flow x T)^-m to ~0.05 % in psi: with
     # the right gas level nothing is left that the noise does not explain
+    assert result.model_check is not None and result.model_check.adequate
+
+
+def test_a_small_but_significant_misfit_tries_the_level_term() -> None:
+    """10 Hz, sheaths 0.77 / 0.29 s on 5.5 / 19 s elements, m 0.56, the mass flow as the
+    column. The order-2 power law left 1.90 times the noise over 563 effective rows (15
+    standard deviations), below the 2 from which the level term was tried, so it never was:
+    m 0.654, flagged. Tried whenever the misfit is significant (measured: m 0.583, sheaths
+    0.82 / 0.32 s, misfit 1.07, 1.02x the oracle)."""
+    rec = record(61007, duration=900.0, tau=5.47, ratio=3.53, m=0.56, sheaths=(0.77, 0.29))
+    result = _with_mass_flow(rec)
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law" and model.level_reference is not None
+    assert [len(t) for t in result.estimate.time_constants] == [2, 2]
+    assert abs(model.exponent - 0.56) < 0.05  # issue 11's bound
+    # issue 11's bounds but the 15 % of the raw fast sensor, which even the oracle misses
+    # on this record (1.27 K against a raw 8.53 K: 14.9 %)
+    assert max(_tau_errors(result, rec)) < 0.05
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
     assert result.model_check is not None and result.model_check.adequate
 
 
