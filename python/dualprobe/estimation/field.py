@@ -298,8 +298,9 @@ def _level(
     misfit = fit.misfit if against is None else against
     if one_sided:
         misfit = level.one_sided_misfit(fit)
-    if fit.hysteresis or (decided is None and not flow.evidence(
-            misfit, 1.0, effective_rows(estimate)) > GAP_THRESHOLD):
+    n_eff = effective_rows(estimate)
+    if fit.hysteresis or (decided is None and not flow.evidence(misfit, 1.0, n_eff)
+                          > GAP_THRESHOLD):
         return None
     # the candidate levels (level.candidates): the better of sensor 1's inverse smoothed over
     # tf and its reading, unless a sharper inverse explains the signals significantly better
@@ -308,9 +309,10 @@ def _level(
     if decided is not None:
         starts.append(np.array([decided.exponent, decided.level_parameters[0],
                                 decided.level_parameters[1]]))
-    n_eff = effective_rows(estimate)
     chosen: list[level.Found] = []
     for levels in (usual, sharp):
+        if chosen and not flow.evidence(float(chosen[0][0].fun), 1.0, n_eff) > GAP_THRESHOLD:
+            break  # within the noise: no sharper level can be significantly better
         found = [level.search(t1, t2, fit, signal, start, gas, one_sided=one_sided)
                  for gas in levels for start in starts]
         options = [f for f in found if f is not None]
