@@ -146,9 +146,12 @@ def test_double_core_matches_reference(name: str) -> None:
     # theta <= 7e-11 with one weight, time constants <= 2e-9 with four.
     np.testing.assert_allclose(_taus(core), _reference_taus(ref), rtol=1e-8)
     _assert_theta_close(core["theta"], ref, CASES[name][4])
+    # The eigenvalues' rounding is absolute, on the scale of the largest (Weyl): measured up to
+    # 1.1e-13 of it with one weight, 6.3e-12 and 2.9e-11 with four (the latter on a machine
+    # whose BLAS kernels for the reference's products differ; 1e-11 failed there), so 1e-10.
     mu = np.asarray(core["eigenvalues"])
     np.testing.assert_allclose(mu, ref.eigenvalues, rtol=1e-9,
-                               atol=1e-11 * float(np.max(np.abs(ref.eigenvalues))))
+                               atol=1e-10 * float(np.max(np.abs(ref.eigenvalues))))
     if s["static"] == "affine":
         assert core["gain_ratio"] == pytest.approx(ref.extra["gain_ratio"], rel=1e-9)
         # a least-squares coefficient of kelvin-sized sums: absolute rounding
