@@ -319,8 +319,10 @@ def test_json_document_and_output_rows(
         "static_model",  # issue 16: gain ratio and offset with their uncertainties
         "uncertainty",  # issue 16: how the standard uncertainties were computed
         "model_check",  # issue 11: does the model explain both signals
+        "notes",  # the loader's and the characterisation's notes (units, held readings)
     }
     assert document["order"] == 1 and document["method"] in ("svf", "auto")
+    assert document["notes"] == []  # a regular CSV of fresh readings: nothing to note
     sensors = document["sensors"]
     assert isinstance(sensors, list)
     assert [s["column"] for s in sensors] == ["T_m1", "T_m2"]

@@ -234,13 +234,18 @@ def test_undetermined_stages_fall_back_to_first_order_with_their_reason(
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
 
 
-def test_an_undetermined_gain_falls_back_to_first_order() -> None:
-    """5 Hz, gains 0.97 / 1.009, the slow sensor's logger holding each reading for two rows:
-    order 2 gave a gain ratio of 1.92 +- 22.9 and an offset of -535 K, the model "adequate"
-    and the gas 27.1 K RMS off where the raw fast sensor is 16.3 K off (exit 0). First order
-    determines the gain (0.957): 2.1 K."""
+def test_an_undetermined_gain_falls_back_to_first_order(monkeypatch: pytest.MonkeyPatch,
+                                                        ) -> None:
+    """5 Hz, gains 0.97 / 1.009, the slow sensor's logger holding each reading for two rows,
+    taken as readings (as a hold with no regular pattern would be: its interpolation is off
+    here): order 2 gave a gain ratio of 1.92 +- 22.9 and an offset of -535 K, the model
+    "adequate" and the gas 27.1 K RMS off where the raw fast sensor is 16.3 K off (exit 0).
+    First order determines the gain (0.957): 2.1 K. (Interpolated, the same record gives
+    first order directly at 1.02x the oracle.)"""
     rec = record(1005, duration=900.0, rate=5.0, tau=2.03, ratio=3.71, m=0.64,
                  gains=(0.97, 1.009), noise=0.114, adc=0.0, jitter=0.002, hold=2)
+    monkeypatch.setattr(characterise_module, "unhold",
+                        lambda x, ts, smooth=False: (np.asarray(x, dtype=float), 1))
     result = _with_mass_flow(rec)
     assert "order_fallback" in result.estimate.identifiability
     assert result.gas_estimate is not None
@@ -317,14 +322,42 @@ def test_asked_for_order_2_with_undetermined_stages_is_refused() -> None:
                             flow_column="mdot", reconstruction="smoother")
 
 
-def test_held_readings_are_named_not_called_adequate() -> None:
-    """2 Hz, the slow sensor's logger refreshing every other row (a 1 s hold): the model was
-    "adequate" while the fast sensor's per-row time constant was 31 % off (2.6x the oracle).
-    The hold is beyond the model; the check says so, with which sensor."""
+@pytest.mark.parametrize("flow", [True, False])
+def test_held_readings_are_interpolated_between_refreshes(flow: bool) -> None:
+    """2 Hz, the slow sensor's logger refreshing every other row (a 1 s hold): taken as
+    readings, the fast sensor's per-row time constant was 31 % off and the gas 2.6x the oracle
+    with the flow (4.1x without), flagged. Interpolated between its refreshes by a cubic,
+    its noise counted once per refresh (dualprobe.models.held), with a note that says so."""
     rec = record(3005, duration=900.0, rate=2.0, tau=2.78, ratio=2.36, m=0.6, noise=0.047,
                  adc=0.02, hold=2)
     assert held_share(rec.t1) < 0.02 and held_share(rec.t2) == pytest.approx(0.5, abs=0.05)
-    result = _with_mass_flow(rec)
+    result = (_with_mass_flow(rec) if flow else
+              characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother"))
+    assert any(n.startswith("T_m2 holds its readings for 2 rows") for n in result.notes)
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, rec.gas)
+    if flow:  # the issue's bounds with the flow (measured: 1.1 % and 0.7 %, 0.90x)
+        _assert_issue_bounds(result, rec)
+    else:  # and without (measured 1.40x; per-row time constants 8 % off)
+        assert ours <= 2.5 * _oracle_rmse(rec)
+    check = result.model_check
+    assert check is not None and check.adequate, check and check.reasons
+
+
+def test_irregularly_held_readings_are_named_not_called_adequate() -> None:
+    """A logger refreshing after 2-5 rows at random is no regular pattern, so nothing is
+    interpolated (a quantised signal's runs look alike); the hold is beyond the model, and the
+    check says so, with which sensor."""
+    rec = record(3005, duration=900.0, rate=2.0, tau=2.78, ratio=2.36, m=0.6, noise=0.047,
+                 adc=0.02)
+    runs = np.random.default_rng(1).integers(2, 6, rec.t2.size)
+    starts = np.cumsum(runs)
+    starts = np.concatenate([[0], starts[starts < rec.t2.size]])
+    held = rec.t2[starts][np.searchsorted(starts, np.arange(rec.t2.size), side="right") - 1]
+    assert held_share(held) > 0.5
+    result = characterise_arrays(rec.t1, held, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    assert not result.notes
     check = result.model_check
     assert check is not None and not check.adequate
     assert any(r.startswith("T_m2 holds its readings") for r in check.reasons), check.reasons

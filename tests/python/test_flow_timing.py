@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from dualprobe.estimation.flow import check_flow
-from dualprobe.estimation.flow_timing import delay_profile, shifted, unhold
+from dualprobe.estimation.flow_timing import delay_profile, shifted
+from dualprobe.models.held import unhold
 
 
 def _smooth(n: int) -> np.ndarray:

@@ -5,10 +5,8 @@ sensors' instants. Recordings rarely give it exactly:
 
 * **held**: a flow logged slower than the sensors repeats its value until the next refresh
   (CSV exports of mixed-rate loggers); the staircase lags the flow by half a refresh on
-  average. :func:`unhold` puts each refreshed value at its refresh row and interpolates
-  linearly between them, as the MDF4 reader does for a channel of another rate. It acts only
-  on a regular refresh pattern (most runs of equal values of one length k >= 2), not on a
-  quantised or piecewise-constant flow, whose runs are irregular.
+  average. :func:`dualprobe.models.held.unhold` puts each refreshed value at its refresh row
+  and interpolates linearly between them (the same for held sensor readings).
 * **delayed**: the ECU's mass flow is measured at the intake (or filtered in the ECU), the
   exhaust flow at the sensors follows it by a transport delay of a few tenths of a second.
   psi is then ``(v(t - d) / v_ref)^m``; :func:`timed_flow_law` finds d (either sign) by the
@@ -43,32 +41,13 @@ from dualprobe.estimation.field import (
 from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
+from dualprobe.models.held import unhold
 
-__all__ = ["DELAY_RANGE", "MAX_REFRESH", "delay_profile", "shifted", "timed_flow_law", "unhold"]
+__all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law"]
 
 DELAY_RANGE = 2.0  # s: |d| searched (intake-to-exhaust transport and ECU filters: 0.05-1 s)
 DELAY_STEP = 0.25  # s: coarse grid before Brent (the profile is smooth on this scale)
 DELAY_TOLERANCE = 0.01  # s
-_REGULAR_SHARE = 0.8  # share of runs within one row of the modal length for a refresh pattern
-MAX_REFRESH = 2.0  # s: the slowest logger refresh taken as a hold (rasters: 10 ms - 1 s)
-
-
-def unhold(values: np.ndarray, ts: float) -> tuple[np.ndarray, int]:
-    """(the flow with held values interpolated between refresh rows, rows per refresh; 1:
-    not held, values unchanged). A refresh slower than ``MAX_REFRESH`` is no logger's: a
-    laboratory flow stepped at regular intervals (every 60 s) keeps its steps."""
-    v = np.asarray(values, dtype=float)
-    starts = np.concatenate([[0], np.flatnonzero(np.diff(v) != 0.0) + 1])
-    runs = np.diff(starts)  # the last run is open-ended: not counted
-    if runs.size < 8:
-        return v, 1
-    lengths, counts = np.unique(runs, return_counts=True)
-    k = int(lengths[np.argmax(counts)])
-    regular = np.count_nonzero(np.abs(runs - k) <= 1) / runs.size
-    if k < 2 or regular < _REGULAR_SHARE or k * ts > MAX_REFRESH:
-        return v, 1
-    rows = np.arange(v.size, dtype=float)
-    return np.interp(rows, starts.astype(float), v[starts]), k
 
 
 def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:

@@ -143,6 +143,7 @@ class Characterisation:
             "sensors": [self._sensor(i, c) for i, c in enumerate(self.columns)],
             "noise_std": list(est.noise_std),
             "identifiability": {k: v for k, v in est.identifiability.items()},
+            "notes": list(self.notes),
         }
         static = est.details.get("static_model")
         if static is not None:

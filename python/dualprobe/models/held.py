@@ -1,0 +1,88 @@
+"""Readings a logger holds: a channel logged slower than the rows repeats its value until the
+next refresh (CSV exports of mixed-rate loggers, a slow sensor's ECU). The staircase lags the
+signal by half a refresh on average and, to a model of the sensor, looks like an extra stage.
+
+:func:`unhold` puts each refreshed value at its refresh row and interpolates between them
+(straight lines, as the MDF4 reader does for a channel of another rate, or a cubic for a
+sensor's smooth reading); the one implementation for the flow column
+(:mod:`dualprobe.estimation.flow_timing`) and the sensors' readings
+(:mod:`dualprobe.workflows.characterise`). :func:`held_noise_std` is the white-equivalent noise
+of such an interpolated sensor: each refresh is one reading, carried over k rows.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.interpolate
+
+from dualprobe.models.noise import estimate_noise_std
+
+__all__ = ["MAX_REFRESH", "held_noise_std", "unhold"]
+
+_REGULAR_SHARE = 0.8  # share of runs within one row of the modal length for a refresh pattern
+_GRID_SHARE = 0.9  # share of the changes on one row of every k for a refresh grid
+MAX_REFRESH = 2.0  # s: the slowest logger refresh taken as a hold (rasters: 10 ms - 1 s)
+
+
+def _refreshes(v: np.ndarray, ts: float) -> tuple[np.ndarray, int]:
+    """(the refresh rows, rows per refresh k) of a held signal; (the rows where the value
+    changes, 1) when it is not held. Held: the modal run of equal values k >= 2 is at most
+    ``MAX_REFRESH`` long, and most runs are within a row of it (a refresh that is no whole
+    number of rows: runs of 2 and 3) or the changes fall on one row of every k (a coarse ADC
+    repeats a value over two refreshes: runs of k, 2k, 3k); then the refresh rows are that
+    grid, repeated values included. A quantised signal's runs are irregular and its changes
+    fall on every row alike."""
+    starts = np.concatenate([[0], np.flatnonzero(np.diff(v) != 0.0) + 1])
+    runs = np.diff(starts)  # the last run is open-ended: not counted
+    if runs.size < 8:
+        return starts, 1
+    lengths, counts = np.unique(runs, return_counts=True)
+    k = int(lengths[np.argmax(counts)])
+    if k < 2 or k * ts > MAX_REFRESH:
+        return starts, 1
+    residues = np.bincount(starts[1:] % k, minlength=k)
+    phase = int(np.argmax(residues))
+    if residues[phase] >= _GRID_SHARE * (starts.size - 1):
+        grid = np.arange(phase, v.size, k)
+        return (np.concatenate([[0], grid]) if phase > 0 else grid), k
+    if np.count_nonzero(np.abs(runs - k) <= 1) >= _REGULAR_SHARE * runs.size:
+        return starts, k
+    return starts, 1
+
+
+def unhold(values: np.ndarray, ts: float, *, smooth: bool = False) -> tuple[np.ndarray, int]:
+    """(the signal with held values interpolated between refresh rows, rows per refresh; 1:
+    not held, values unchanged). It acts only on a regular refresh pattern (:func:`_refreshes`),
+    not on a quantised or piecewise-constant signal, whose runs are irregular. A refresh slower
+    than ``MAX_REFRESH`` is no logger's: a laboratory flow stepped at regular intervals (every
+    60 s) keeps its steps. ``smooth``: a cubic spline through the refreshes instead of straight
+    lines, for a sensor's reading (smooth: it lags the gas), where the straight line's error,
+    an eighth of the refresh interval squared times the curvature, is tenths of a kelvin at
+    1 s refreshes on a drive cycle."""
+    v = np.asarray(values, dtype=float)
+    points, k = _refreshes(v, ts)
+    if k == 1:
+        return v, 1
+    rows = np.arange(v.size, dtype=float)
+    if smooth:
+        spline = scipy.interpolate.CubicSpline(points.astype(float), v[points])
+        inside = np.minimum(rows, float(points[-1]))  # the last run: held, not extrapolated
+        return np.asarray(spline(inside)), k
+    return np.interp(rows, points.astype(float), v[points]), k
+
+
+def held_noise_std(values: np.ndarray, ts: float, order: int) -> float:
+    """The white-equivalent noise level of a held signal interpolated by :func:`unhold`: the
+    refreshes' own noise (:func:`estimate_noise_std` of the refreshed values, difference order
+    ``order``) times sqrt(rows per refresh); :func:`estimate_noise_std` of the values when they
+    are not held. Why: at the frequencies a fit resolves, k rows interpolated from one reading
+    carry that reading's noise k times over (a power density k times that of white noise of
+    the same level), and the rows' own differences, being smooth between refreshes, show
+    almost none of it."""
+    v = np.asarray(values, dtype=float)
+    points, k = _refreshes(v, ts)
+    if k == 1:
+        return estimate_noise_std(v, order)
+    return estimate_noise_std(v[points], order) * math.sqrt(k)

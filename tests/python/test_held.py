@@ -1,0 +1,69 @@
+"""A logger's held readings (dualprobe.models.held): a sensor's refreshes interpolated by a
+cubic, and its noise counted once per refresh."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from dualprobe.models.held import held_noise_std, unhold
+from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
+
+
+def _smooth(n: int) -> np.ndarray:
+    t = np.arange(n) * 0.1
+    return 10.0 + 3.0 * np.sin(2 * math.pi * t / 37.0) + np.sin(2 * math.pi * t / 9.0)
+
+
+def test_a_held_reading_is_interpolated_by_a_cubic() -> None:
+    truth = _smooth(3000)
+    held = np.repeat(truth[::10], 10)[:truth.size]  # refreshed once a second at 10 Hz
+    cubic, refresh = unhold(held, 0.1, smooth=True)
+    linear, _ = unhold(held, 0.1)
+    assert refresh == 10
+    np.testing.assert_allclose(cubic[::10], truth[::10], atol=1e-12)  # the refreshes
+    inner = slice(20, -20)  # not-a-knot ends, and the open last run (held)
+    # a cubic spline's error bound 5/384 h^4 max|v''''| = 0.0031 for h = 1 s; the straight
+    # lines' h^2/8 max|v''| = 0.072 (they reach 0.06 here)
+    assert np.max(np.abs(cubic[inner] - truth[inner])) < 0.0035
+    assert np.max(np.abs(linear[inner] - truth[inner])) > 0.05
+    np.testing.assert_array_equal(cubic[-5:], held[-5:])  # the last run is held
+
+
+def test_a_held_readings_noise_is_counted_once_per_refresh() -> None:
+    rng = np.random.default_rng(5)
+    sigma, rows = 0.1, 3
+    readings = _smooth(9000) + sigma * rng.standard_normal(9000)
+    held = np.repeat(readings[::rows], rows)[:readings.size]
+    values, refresh = unhold(held, 0.1, smooth=True)
+    assert refresh == rows
+    # the refreshes are 3000 white readings: the MAD of their 4th differences has a relative
+    # standard error of about 3 %; 10 % is three of those
+    level = held_noise_std(held, 0.1, ORDER_ESTIMATION)
+    assert abs(level / (sigma * math.sqrt(rows)) - 1.0) < 0.1
+    # the interpolated rows' own differences show a fraction of it (why the refreshes count)
+    assert estimate_noise_std(values, ORDER_ESTIMATION) < 0.5 * sigma
+
+
+def test_a_coarse_adc_that_repeats_a_refresh_still_shows_the_grid() -> None:
+    """A coarse ADC on a slow signal repeats a value over two or three refreshes (runs of k, 2k,
+    3k: under 80 % within a row of k), but every change falls on one row of every k; a
+    quantised signal that is not held changes on any row."""
+    rng = np.random.default_rng(8)
+    truth = _smooth(6000)
+    x = truth + 0.05 * rng.standard_normal(6000)
+    held = np.round(np.repeat(x[1::3], 3)[:5999] / 0.25) * 0.25  # refreshes on rows 0 mod 3
+    held = np.concatenate([[held[0]], held])  # ... shifted: the grid's phase is row 1
+    runs = np.diff(np.flatnonzero(np.diff(held) != 0.0))
+    assert np.mean(np.abs(runs - 3) <= 1) < 0.8
+    values, refresh = unhold(held, 0.1, smooth=True)
+    assert refresh == 3
+    np.testing.assert_array_equal(values[1::3], held[1::3])  # the refresh grid, repeats too
+    # between refreshes as close to the truth as a reading is (rounding and noise: RMS
+    # sqrt(0.25^2 / 12 + 0.05^2) = 0.088; measured 0.084), the staircase not (0.118)
+    inner = slice(30, -30)
+    rms = float(np.sqrt(np.mean((values[inner] - truth[inner]) ** 2)))
+    assert rms < math.sqrt(0.25**2 / 12 + 0.05**2)
+    assert float(np.sqrt(np.mean((held[inner] - truth[inner]) ** 2))) > 1.3 * rms
+    assert unhold(np.round(x / 0.25) * 0.25, 0.1)[1] == 1  # not held: left alone
