@@ -1,5 +1,6 @@
-"""A logger's held readings (dualprobe.models.held): a sensor's refreshes interpolated by a
-cubic, and its noise counted once per refresh."""
+"""A logger's held readings (dualprobe.models.held): a regular refresh detected (and not a
+quantised or stepped signal), interpolated between refreshes (straight lines for the flow
+column, a cubic for a sensor), and a sensor's noise counted once per refresh."""
 
 from __future__ import annotations
 
@@ -67,3 +68,34 @@ def test_a_coarse_adc_that_repeats_a_refresh_still_shows_the_grid() -> None:
     assert rms < math.sqrt(0.25**2 / 12 + 0.05**2)
     assert float(np.sqrt(np.mean((held[inner] - truth[inner]) ** 2))) > 1.3 * rms
     assert unhold(np.round(x / 0.25) * 0.25, 0.1)[1] == 1  # not held: left alone
+
+
+def test_a_regular_refresh_is_interpolated_between_refreshes() -> None:
+    truth = _smooth(3000)
+    held = np.repeat(truth[::10], 10)[:truth.size]  # refreshed once a second at 10 Hz
+    values, refresh = unhold(held, 0.1)
+    assert refresh == 10
+    np.testing.assert_array_equal(values[::10], truth[::10])  # the refreshes themselves
+    # between them, linear interpolation: its error bound h^2/8 max|v''| = 0.072 for h = 1 s
+    # (the staircase's: up to h max|v'| = 1.2)
+    assert np.max(np.abs(values[:-10] - truth[:-10])) < 0.075
+    assert np.max(np.abs(held - truth)) > 0.5
+    # a logger whose refresh is not a whole number of rows: runs of 2 and 3
+    rows = np.floor(np.arange(truth.size) / 2.5) * 2.5
+    jittered = np.interp(np.ceil(rows), np.arange(truth.size), truth)
+    assert unhold(jittered, 0.1)[1] in (2, 3)
+
+
+def test_quantised_or_piecewise_constant_flows_are_left_alone() -> None:
+    rng = np.random.default_rng(3)
+    quantised = np.round(_smooth(3000) + 0.3 * rng.standard_normal(3000))  # irregular runs
+    values, refresh = unhold(quantised, 0.1)
+    assert refresh == 1 and np.array_equal(values, quantised)
+    steps = np.repeat([10.0, 30.0, 20.0, 40.0, 15.0, 25.0, 35.0, 12.0, 22.0, 33.0],
+                      [300, 120, 410, 90, 270, 330, 150, 220, 180, 230])  # a laboratory cycle
+    assert unhold(steps, 0.1)[1] == 1
+    assert unhold(_smooth(3000), 0.1)[1] == 1
+    # a laboratory flow stepped every 60 s, exactly: regular, but no logger refreshes so slowly
+    regular = np.repeat(10.0 + 5.0 * (np.arange(20) % 3), 600)
+    values, refresh = unhold(regular, 0.1)
+    assert refresh == 1 and np.array_equal(values, regular)
