@@ -77,11 +77,13 @@ def _unhold_readings(
         signals.append(values)
         given = None if sigma is None else sigma[index]
         if rows > 1:
-            levels.append(held_noise_std(x, ts, ORDER_ESTIMATION) if given is None
-                          else given * math.sqrt(rows))
+            level = (held_noise_std(x, ts, ORDER_ESTIMATION) if given is None
+                     else given * math.sqrt(rows))
+            levels.append(level)
             notes.append(f"{column} holds its readings for {rows} rows per refresh (a logger "
                          "refreshing slower than the rows): interpolated between its refreshes, "
-                         "its noise counted once per refresh")
+                         f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
+                         f"per refresh ({level:.3g} K per row in the noise std)")
         else:
             levels.append(estimate_noise_std(x, ORDER_ESTIMATION) if given is None else given)
     if not notes:
