@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from dualprobe.models.held import held_noise_std, unhold
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
@@ -45,6 +46,11 @@ def test_a_held_readings_noise_is_counted_once_per_refresh() -> None:
     assert abs(level / (sigma * math.sqrt(rows)) - 1.0) < 0.1
     # the interpolated rows' own differences show a fraction of it (why the refreshes count)
     assert estimate_noise_std(values, ORDER_ESTIMATION) < 0.5 * sigma
+    # a noise-free ramp of one 0.1 K ADC step per refresh: its refreshes' differences are all
+    # equal (no noise in them at all), yet each reading carries its rounding, q / sqrt(12)
+    ramp = 0.1 * (np.arange(9000) // rows)
+    floor = 0.1 / math.sqrt(12.0) * math.sqrt(rows)
+    assert held_noise_std(ramp, 0.1, ORDER_ESTIMATION) == pytest.approx(floor, rel=1e-9)
 
 
 def test_a_coarse_adc_that_repeats_a_refresh_still_shows_the_grid() -> None:

@@ -17,7 +17,7 @@ import math
 import numpy as np
 import scipy.interpolate
 
-from dualprobe.models.noise import estimate_noise_std
+from dualprobe.models.noise import estimate_noise_std, quantisation_floor
 
 __all__ = ["MAX_REFRESH", "held_noise_std", "unhold"]
 
@@ -80,9 +80,11 @@ def held_noise_std(values: np.ndarray, ts: float, order: int) -> float:
     are not held. Why: at the frequencies a fit resolves, k rows interpolated from one reading
     carry that reading's noise k times over (a power density k times that of white noise of
     the same level), and the rows' own differences, being smooth between refreshes, show
-    almost none of it."""
+    almost none of it. Never below the quantisation floor of the readings."""
     v = np.asarray(values, dtype=float)
     points, k = _refreshes(v, ts)
     if k == 1:
         return estimate_noise_std(v, order)
-    return estimate_noise_std(v[points], order) * math.sqrt(k)
+    # never below the readings' rounding (q / sqrt(12)): noise-free quantised refreshes can
+    # show no noise in their differences, and a level of 0 is no sensor's
+    return max(estimate_noise_std(v[points], order), quantisation_floor(v)) * math.sqrt(k)
