@@ -13,7 +13,7 @@ import numpy as np
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.models.held import held_noise_std, unhold
-from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
+from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
@@ -68,27 +68,24 @@ def _unhold_readings(
     counted once per refresh (:func:`dualprobe.models.held.held_noise_std`; a given level
     times sqrt(rows)). Unchanged when neither is held. Why: the staircase is a delay no sensor
     model has, and the time constants absorbed it. Separate generator, the slow sensor held:
-    5 Hz for 3 rows, 10.8x the oracle with the flow (12.5x without), interpolated 1.6x
-    (1.9x); 2 Hz for 2 rows, the fast sensor's per-row time constant 31 % off and 2.6x,
-    interpolated 1.3 % and 1.07x."""
-    signals, levels, notes = [], [], []
-    for index, (x, column) in enumerate(zip((t1, t2), columns, strict=True)):
-        values, rows = unhold(x, ts, smooth=True)
-        signals.append(values)
-        given = None if sigma is None else sigma[index]
+    5 Hz for 3 rows, 10.8x the oracle with the flow (12.5x without), interpolated 1.12x
+    (1.47x); 2 Hz for 2 rows, the fast sensor's per-row time constant 31 % off and 2.6x,
+    interpolated 1.1 % and 0.90x."""
+    held = [unhold(x, ts, smooth=True) for x in (t1, t2)]
+    if all(rows == 1 for _, rows in held):
+        return t1, t2, sigma, ()  # the noise is then estimated once, by the estimation
+    levels, notes = [], []
+    for index, (x, (_, rows), column) in enumerate(zip((t1, t2), held, columns, strict=True)):
+        # held_noise_std is estimate_noise_std on a sensor that is not held
+        level = (held_noise_std(x, ts, ORDER_ESTIMATION) if sigma is None
+                 else sigma[index] * math.sqrt(rows))
+        levels.append(level)
         if rows > 1:
-            level = (held_noise_std(x, ts, ORDER_ESTIMATION) if given is None
-                     else given * math.sqrt(rows))
-            levels.append(level)
             notes.append(f"{column} holds its readings for {rows} rows per refresh (a logger "
                          "refreshing slower than the rows): interpolated between its refreshes, "
                          f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
                          f"per refresh ({level:.3g} K per row in the noise std)")
-        else:
-            levels.append(estimate_noise_std(x, ORDER_ESTIMATION) if given is None else given)
-    if not notes:
-        return t1, t2, sigma, ()
-    return signals[0], signals[1], (levels[0], levels[1]), tuple(notes)
+    return held[0][0], held[1][0], (levels[0], levels[1]), tuple(notes)
 
 
 def _format_taus(taus: Sequence[Sequence[float]]) -> str:
