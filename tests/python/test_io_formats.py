@@ -100,32 +100,75 @@ def test_clock_jitter_is_resampled_with_a_note(tmp_path: Path) -> None:
     exact = slow_signals(recording.t)
     bound = (ts + 1e-3) ** 2 * 5.0 * 0.09 / 8.0
     assert np.max(np.abs(recording.columns["T_m1"] - exact["T_m1"])) < bound
-    # The strict loader refuses it, and so does load_recording beyond 10 %.
+    # The strict loader refuses it.
     with pytest.raises(InputError, match="irregular time step"):
         load_columns(path, ["T_m1"])
-    wild = np.arange(400) * ts + rng.uniform(-1.2e-3, 1.2e-3, 400)
-    path = write_csv(tmp_path / "w.csv", {"t": wild, **slow_signals(wild)})
-    text = error_of(path, ["T_m1"])
-    assert "irregular time step" in text and "10 %" in text and "line " in text
 
 
-def test_gaps_split_the_record(tmp_path: Path) -> None:
+def test_event_driven_stamps_are_resampled_within_the_interpolation_bound(tmp_path: Path) -> None:
+    """Stamps scattering by +-40 % of the interval (a logger stamping CAN frames as they come):
+    once refused beyond 10 %, now resampled like any jitter, within the straight line's error
+    bound for the longest interval h: h^2 max|x''| / 8."""
+    rng = np.random.default_rng(6)
+    ts = 0.1
+    instants = np.arange(600) * ts + rng.uniform(-0.02, 0.02, 600)
+    path = write_csv(tmp_path / "w.csv", {"t": instants, **slow_signals(instants)})
+    recording = load_recording(path, ["T_m1", "T_m2"])
+    assert recording.sample_interval == pytest.approx(ts, rel=2e-3)
+    (note,) = recording.notes
+    assert note.startswith("clock jitter: intervals scatter by up to") and "%" in note
+    h = float(np.max(np.diff(instants)))
+    bound = h**2 * 5.0 * 0.09 / 8.0
+    exact = slow_signals(recording.t)
+    for name in ("T_m1", "T_m2"):
+        assert np.max(np.abs(recording.columns[name] - exact[name])) < bound
+
+
+def test_stamps_off_a_uniform_clock_are_refused_naming_the_row(tmp_path: Path) -> None:
+    """Jitter is scatter about a uniform grid: a clock that speeds up (t = k^2) or stamps
+    further than a quarter interval from the grid (+-35 %) are refused, naming the row."""
+    rng = np.random.default_rng(7)
+    for name, stamps in (("speeding", np.arange(60.0) ** 2 * 0.01),
+                         ("wild", np.arange(400) * 0.1 + rng.uniform(-0.035, 0.035, 400))):
+        path = write_csv(tmp_path / f"{name}.csv", {"t": stamps, **slow_signals(stamps)})
+        text = error_of(path, ["T_m1"])
+        assert "irregular time step" in text and "not clock jitter" in text
+        assert "line " in text and "\n" not in text
+
+
+def test_dropped_rows_are_bridged_and_gaps_split_the_record(tmp_path: Path) -> None:
     t = np.arange(300) * 0.015
     keep = np.ones(t.size, dtype=bool)
     keep[100:107] = False  # 7 rows lost: a gap of 8 intervals after row 99
-    keep[200:202] = False
+    keep[200:202] = False  # 2 rows lost: bridged (at most BRIDGE_ROWS)
+    keep[250:254] = False  # 4 rows lost: a gap of 5 intervals
     path = write_csv(tmp_path / "g.csv", {"t": t[keep], **slow_signals(t[keep])})
     recording = load_recording(path, ["T_m1", "T_m2"])
-    assert [(s.start, s.stop) for s in recording.segments] == [(0, 100), (100, 193), (193, 291)]
+    # on the grid again: rows 107-249 and 254-299 of the logger, the two lost ones interpolated
+    assert [(s.start, s.stop) for s in recording.segments] == [(0, 100), (100, 243), (243, 289)]
     assert recording.sample_interval == pytest.approx(0.015)
+    np.testing.assert_allclose(recording.t[100:243], t[107:250], atol=1e-12)
+    exact = slow_signals(t[107:250])
+    # a straight line over 3 intervals: error <= (3 Ts)^2 max|x''| / 8
+    bound = (3 * 0.015) ** 2 * 5.0 * 0.09 / 8.0
+    assert np.max(np.abs(recording.columns["T_m1"][100:243] - exact["T_m1"])) < bound
     first = str(recording.gaps[0])
     assert first == "line 102 (t = 1.485 s): gap of 0.12 s (8 intervals)"
-    assert recording.notes[0] == first + ": the record is split there"
+    assert len(recording.gaps) == 2
+    assert recording.notes[0] == (
+        "dropped rows: 1 interval of up to 3 missing rows (longest: line 195 (t = 2.985 s): "
+        "gap of 0.045 s (3 intervals)) bridged by linear interpolation: 2 of 289 rows "
+        "interpolated (0.69 %; 287 rows in the file)"
+    )
+    assert recording.notes[1] == first + ": the record is split there"
     with pytest.raises(InputError) as info:
         recording.require_contiguous("characterise")
     text = str(info.value)
     assert text.startswith(f"{path}: line 102 (t = 1.485 s): gap of 0.12 s (8 intervals)")
     assert "and 1 more" in text and "characterise needs a record without gaps" in text
+    # the strict loader refuses a lost row
+    with pytest.raises(InputError, match="irregular time step"):
+        load_columns(path, ["T_m1"])
 
 
 def test_units_row_is_refused(tmp_path: Path) -> None:

@@ -1,6 +1,7 @@
 """Format-independent loading of a recording: CSV, Parquet or MDF4 in, seconds and checked
 float64 columns out (:func:`load_recording`), with the time base rules of
-:mod:`dualprobe.io.timebase` (units, jitter resampled, gaps split into segments).
+:mod:`dualprobe.io.timebase` (units, jitter resampled, dropped rows bridged, gaps split into
+segments).
 
 The format follows from the content (MDF4's ``MDF`` identification, Parquet's ``PAR1``
 magic) and otherwise from the extension (``.mf4``/``.mdf``, ``.parquet``/``.pq``: a file
@@ -23,6 +24,7 @@ from dualprobe.io.mdf import MDF_MAGIC, read_mdf
 from dualprobe.io.parquet import PARQUET_MAGIC, read_parquet
 from dualprobe.io.table import Table
 from dualprobe.io.timebase import (
+    BRIDGE_ROWS,
     TIME_UNITS,
     Gap,
     analyse_time,
@@ -47,7 +49,8 @@ class Recording:
     requested columns (finite float64, same length), ``sample_interval`` in seconds,
     ``segments`` the contiguous uniform stretches as slices of the rows, ``gaps`` between
     them, ``notes`` one-line notes (unit read from the header, jitter resampled, gaps,
-    channels interpolated from another raster), ``source`` the file, ``format`` its format.
+    dropped rows bridged, channels interpolated from another raster), ``source`` the file,
+    ``format`` its format.
     """
 
     t: np.ndarray
@@ -216,13 +219,24 @@ def load_recording(
         strict=strict,
     )
     segments = tuple(slice(start, stop) for start, stop in base.segments)
+    if not base.uniform:
+        stamped = t.size
+        t, data, segments = resample_segments(t, data, base)
     if not base.regular:
         scatter = base.jitter
-        t, data, segments = resample_segments(t, data, base)
         notes.append(
             f"clock jitter: intervals scatter by up to {scatter * 1e3:.3g} ms "
             f"({scatter / base.interval * 100:.1f} % of {base.interval * 1e3:.6g} ms); resampled "
             "linearly onto a uniform grid"
+        )
+    if base.bridged:
+        longest = max(base.bridged, key=lambda gap: gap.duration)
+        count = len(base.bridged)
+        notes.append(
+            f"dropped rows: {count} interval{'s' if count > 1 else ''} of up to "
+            f"{BRIDGE_ROWS} missing rows (longest: {longest}) bridged by linear "
+            f"interpolation: {base.bridged_rows} of {t.size} rows interpolated "
+            f"({100.0 * base.bridged_rows / t.size:.2g} %; {stamped} rows in the file)"
         )
     notes.extend(f"{gap}: the record is split there" for gap in base.gaps)
     if base.interval >= _LONG_INTERVAL and time_unit is None and unit_note is None:
