@@ -271,3 +271,17 @@ def test_constant_input_is_an_estimation_error() -> None:
     with pytest.raises(IdentificationError, match="constant"):
         fit_transfer_function(0.1, np.full(50, 20.0), np.linspace(0, 1, 50))
     assert issubclass(IdentificationError, EstimationError)
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_an_output_that_follows_its_input_within_a_row_is_not_a_crash(order: int) -> None:
+    """A sensor far faster than its 15 s rows (output = input): the polish drove the time
+    constants towards zero, where the central difference stepped below zero and the sampled
+    model overflowed (an internal error). The time constant now comes out negligible against
+    the row interval, and every number finite."""
+    ts = 15.0
+    u = np.interp(np.arange(25) * ts, np.arange(20.0) ** 2, np.arange(20.0))
+    fit = fit_transfer_function(ts, u, u.copy(), order=order)
+    assert max(fit.taus) < 1e-3 * ts
+    assert abs(fit.gain - 1.0) < 1e-3
+    assert all(np.isfinite(v) for v in (*fit.taus, *fit.taus_std, fit.gain, fit.gain_std))

@@ -188,12 +188,17 @@ def _search(problem: _Problem, duration: float, n_local: int) -> np.ndarray:
 def _jacobian(problem: _Problem, theta: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Central-difference Jacobian of the model output with respect to theta."""
     jac = np.empty((problem.y.size, theta.size))
+    taus = range(1, 1 + problem.order)
     for j in range(theta.size):
         step = 1e-5 * scale[j]
         hi = theta.copy()
         lo = theta.copy()
         hi[j] += step
         lo[j] -= step
+        if j in taus and lo[j] <= 0.0:
+            # a time constant below the step (an output that follows its input within a row)
+            # would be evaluated negative: a relative step instead
+            hi[j], lo[j] = theta[j] * (1.0 + 1e-5), theta[j] / (1.0 + 1e-5)
         if problem.delay_estimated and j == 1 + problem.order and lo[j] < 0:
             lo[j] = theta[j]  # one-sided at the delay bound
         jac[:, j] = (_model_output(problem, hi) - _model_output(problem, lo)) / (hi[j] - lo[j])
@@ -370,9 +375,13 @@ def fit_transfer_function(
     # clipped at zero; Levenberg-Marquardt as in the search.
     tau_slice = slice(1, 1 + order)
 
+    # a time constant a million times below the sample interval is zero to the sampled model
+    # (e^(-Ts/tau) underflows long before); below that the polish would overflow
+    log_floor, log_ceiling = math.log(ts * 1e-6), math.log(duration * 1e6)
+
     def to_physical(internal: np.ndarray) -> np.ndarray:
         physical = internal.copy()
-        physical[tau_slice] = np.exp(internal[tau_slice])
+        physical[tau_slice] = np.exp(np.clip(internal[tau_slice], log_floor, log_ceiling))
         if delay:
             physical[1 + order] = max(internal[1 + order], 0.0)
         return physical

@@ -37,8 +37,10 @@ def _phi_functions(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """phi1(z) = (e^z - 1)/z and phi2(z) = (e^z - 1 - z)/z^2, accurate for small |z|."""
     small = np.abs(z) < 1e-4
     safe = np.where(small, 1.0, z)
-    phi1 = np.where(small, 1.0 + z / 2 + z * z / 6, np.expm1(safe) / safe)
-    phi2 = np.where(small, 0.5 + z / 6 + z * z / 24, (np.expm1(safe) - safe) / (safe * safe))
+    tiny = np.where(small, z, 0.0)  # the series only where it is used (z*z overflows far out)
+    phi1 = np.where(small, 1.0 + tiny / 2 + tiny * tiny / 6, np.expm1(safe) / safe)
+    phi2 = np.where(small, 0.5 + tiny / 6 + tiny * tiny / 24,
+                    (np.expm1(safe) - safe) / (safe * safe))
     return phi1, phi2
 
 
