@@ -222,7 +222,8 @@ def test_json_document_has_the_issue_schema() -> None:
     d, _ = _run(("extra_pole",), 41)
     doc = json.loads(json.dumps(d.to_json_dict(), allow_nan=False))
     # issue 5's document; issue 14 added the verdict, the noise, the remaining misfit, the final
-    # parameters and the units of every parameter
+    # parameters and the units of every parameter; the loader's notes (empty here) came with
+    # jittered and bridged field records
     assert set(doc) == {"baseline", "steps", "effects", "final_rmse", "residual_white"} | {
         "verdict",
         "misfit_to_noise",
@@ -230,7 +231,9 @@ def test_json_document_has_the_issue_schema() -> None:
         "noise",
         "misfit",
         "final_params",
+        "notes",
     }
+    assert doc["notes"] == []
     assert set(doc["baseline"]) == {"model", "params", "rmse", "fit_percent", "units"}
     assert doc["baseline"]["model"] == "first_order"
     assert set(doc["baseline"]["params"]) == {"tau", "initial"}  # interpolated input

@@ -14,6 +14,7 @@ from dualprobe.cli.common import (
     add_time_arguments,
     check_writable,
     handle_errors,
+    print_notes,
 )
 
 __all__ = ["register", "run"]
@@ -125,5 +126,6 @@ def run(args: argparse.Namespace) -> int:
     if args.report is not None:
         result.write_report(args.report)
     if not args.quiet:
+        print_notes(result.notes)
         print(result.summary())
     return 0

@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-import math
+import dataclasses
 import os
 from collections.abc import Callable
 
 from dualprobe.diagnose.result import Diagnosis
 from dualprobe.diagnose.search import MIN_SAMPLES, diagnose
-from dualprobe.io import InputError, load_columns
+from dualprobe.io import InputError, load_recording
 from dualprobe.report.json import write_json as write_json_document
 
 __all__ = [
@@ -29,7 +29,7 @@ def diagnose_file(
     noise_std: float | tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
 ) -> Diagnosis:
-    """Load a recording (CSV, Parquet, MDF4: ``dualprobe.io.load_columns``; ``time_unit`` s,
+    """Load a recording (CSV, Parquet, MDF4: ``dualprobe.io.load_recording``; ``time_unit`` s,
     ms, us or min overrides the header's) and diagnose it; `flow_column`
     (values > 0) makes ``flow_dependence`` a candidate, `noise_std` (K) replaces the estimated
     noise of both signals (or gives (reference, measured))."""
@@ -38,27 +38,23 @@ def diagnose_file(
     if flow_column is not None and flow_column in (input_column, output_column):
         raise InputError(f"the flow column {flow_column!r} is also --input or --output")
     names = [input_column, output_column] + ([flow_column] if flow_column else [])
-    t, columns, interval = load_columns(path, names, time=time or None, min_rows=MIN_SAMPLES,
-                                        time_unit=time_unit)
-    if interval is None:
-        if sample_interval is None:
-            raise InputError(f"{path}: no time column; give the sample interval")
-        interval = sample_interval
-    elif sample_interval is not None and not math.isclose(interval, sample_interval, rel_tol=1e-6):
-        raise InputError(
-            f"{path}: time column gives sample interval {interval:g} s, "
-            f"--sample-interval says {sample_interval:g} s"
-        )
+    # the loader of characterise: clock jitter resampled, a few dropped rows bridged (each
+    # said in a note), a gap refused naming it
+    recording = load_recording(path, names, time=time or None, time_unit=time_unit,
+                               sample_interval=sample_interval, min_rows=MIN_SAMPLES)
+    recording.require_contiguous("diagnose")
+    columns = recording.columns
     try:
-        return diagnose(
+        result = diagnose(
             columns[input_column],
             columns[output_column],
-            interval,
-            time=t,
+            recording.sample_interval,
+            time=recording.t,
             flow=columns[flow_column] if flow_column else None,
             noise_std=noise_std,
             progress=progress,
         )
+        return dataclasses.replace(result, notes=recording.notes)
     except ValueError as exc:
         raise InputError(f"{path}: {exc}") from None
 

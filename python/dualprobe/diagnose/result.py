@@ -63,6 +63,7 @@ class Diagnosis:
     noise: dict[str, Any] = field(default_factory=dict)  # levels, their sources, the floors
     verdict: Verdict | None = None
     misfit: dict[str, Any] = field(default_factory=dict)  # localisation of the final residual
+    notes: tuple[str, ...] = ()  # the loader's (jitter resampled, rows bridged, units)
 
     @property
     def effects(self) -> list[str]:
@@ -105,6 +106,7 @@ class Diagnosis:
                 "final_params": dict(self.final.params),
                 "final_rmse": self.final.rmse,
                 "residual_white": self.residual_white,
+                "notes": list(self.notes),
                 "verdict": verdict.verdict if verdict else None,
                 "misfit_to_noise": self.misfit_to_noise,
                 "summary": verdict.sentence if verdict else "",
