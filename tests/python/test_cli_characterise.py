@@ -398,3 +398,13 @@ def test_noise_only_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     status, out, err = run_cli(capsys, "characterise", str(path))
     line = assert_one_error_line(err)
     assert status == 3 and "estimation failed" in line and out == ""
+
+
+def test_a_misfit_rounded_below_zero_is_printed_as_zero() -> None:
+    """The estimation's misfit is a generalised eigenvalue: on a noise-free record it rounds
+    to -9e-9, which the summary printed as a negative misfit."""
+    from dualprobe.workflows.checks import ModelCheck
+
+    (line,) = ModelCheck(True, -8.67e-9, 0.0, (1.0, 1.0)).summary_lines()
+    assert "(misfit 0 x the noise, residuals 1, 1 x each sensor's noise)" in line
+    assert ModelCheck(True, -8.67e-9, 0.0, None).to_json_dict()["estimation_misfit"] < 0.0

@@ -99,7 +99,8 @@ class ModelCheck:
         if self.adequate:
             parts = []
             if math.isfinite(self.estimation_misfit):
-                parts.append(f"misfit {self.estimation_misfit:.3g} x the noise")
+                # an eigenvalue: noise-free records round it below zero (-9e-9 was printed)
+                parts.append(f"misfit {max(self.estimation_misfit, 0.0):.3g} x the noise")
             if self.misfit_to_noise:
                 parts.append("residuals " + ", ".join(f"{m:.2g}" for m in self.misfit_to_noise)
                              + " x each sensor's noise")
