@@ -12,8 +12,6 @@ import numpy as np
 
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
-from dualprobe.models.held import held_noise_std, unhold
-from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
@@ -28,6 +26,7 @@ from dualprobe.workflows.checks import (
     undetermined_stages,
     unsettled_stages,
 )
+from dualprobe.workflows.readings import prepare_readings
 
 __all__ = [
     "METHODS",
@@ -57,35 +56,6 @@ def _parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, 
         if not math.isfinite(value) or value < 0.0:
             raise InputError(f"noise std: must be finite and >= 0, got {value!r}")
     return values[0], values[1]
-
-
-def _unhold_readings(
-    t1: np.ndarray, t2: np.ndarray, ts: float, sigma: tuple[float, float] | None,
-    columns: tuple[str, str],
-) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, tuple[str, ...]]:
-    """(t1, t2, noise levels, notes) with a sensor whose logger holds its readings
-    (:func:`dualprobe.models.held.unhold`) interpolated between its refreshes, and its noise
-    counted once per refresh (:func:`dualprobe.models.held.held_noise_std`; a given level
-    times sqrt(rows)). Unchanged when neither is held. Why: the staircase is a delay no sensor
-    model has, and the time constants absorbed it. Separate generator, the slow sensor held:
-    5 Hz for 3 rows, 10.8x the oracle with the flow (12.5x without), interpolated 1.12x
-    (1.47x); 2 Hz for 2 rows, the fast sensor's per-row time constant 31 % off and 2.6x,
-    interpolated 1.1 % and 0.90x."""
-    held = [unhold(x, ts, smooth=True) for x in (t1, t2)]
-    if all(rows == 1 for _, rows in held):
-        return t1, t2, sigma, ()  # the noise is then estimated once, by the estimation
-    levels, notes = [], []
-    for index, (x, (_, rows), column) in enumerate(zip((t1, t2), held, columns, strict=True)):
-        # held_noise_std is estimate_noise_std on a sensor that is not held
-        level = (held_noise_std(x, ts, ORDER_ESTIMATION) if sigma is None
-                 else sigma[index] * math.sqrt(rows))
-        levels.append(level)
-        if rows > 1:
-            notes.append(f"{column} holds its readings for {rows} rows per refresh (a logger "
-                         "refreshing slower than the rows): interpolated between its refreshes, "
-                         f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
-                         f"per refresh ({level:.3g} K per row in the noise std)")
-    return held[0][0], held[1][0], (levels[0], levels[1]), tuple(notes)
 
 
 def _format_taus(taus: Sequence[Sequence[float]]) -> str:
@@ -208,7 +178,8 @@ def characterise_arrays(
         if reference.shape != t1.shape:
             raise InputError("reference must have the same length as the sensor signals")
     readings = (t1, t2)
-    t1, t2, sigma, held = _unhold_readings(t1, t2, ts, _parse_noise_std(noise_std), columns)
+    t1, t2, sigma, held = prepare_readings(t1, t2, ts, _parse_noise_std(noise_std), columns,
+                                           time)
     _check_excitation(t1, t2, columns)
     svf = method in ("auto", "svf")
 
