@@ -408,3 +408,29 @@ def test_a_misfit_rounded_below_zero_is_printed_as_zero() -> None:
     (line,) = ModelCheck(True, -8.67e-9, 0.0, (1.0, 1.0)).summary_lines()
     assert "(misfit 0 x the noise, residuals 1, 1 x each sensor's noise)" in line
     assert ModelCheck(True, -8.67e-9, 0.0, None).to_json_dict()["estimation_misfit"] < 0.0
+
+
+def test_a_sensor_that_moves_against_the_other_exits_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An inverted channel (T_m2 logged as 1000 - T): the cross-relation is blind to the sign
+    of the gain, so both time constants came out right with "ok" (and no reconstruction, or
+    a message about `relative_static`). Now one line that says which column and why."""
+    rng = np.random.default_rng(8)
+    rows, ts = 3000, 0.1
+    t = np.arange(rows) * ts
+    gas = 500.0 + 50.0 * np.sign(np.sin(2 * np.pi * t / 60.0)) + 5.0 * np.sin(t / 3.0)
+    sensors = []
+    for tau in (3.0, 9.0):
+        a, x = np.exp(-ts / tau), np.empty(rows)
+        x[0] = gas[0]
+        for k in range(1, rows):
+            x[k] = a * x[k - 1] + (1.0 - a) * gas[k]
+        sensors.append(x + rng.normal(0.0, 0.05, rows))
+    path = tmp_path / "inverted.csv"
+    write_columns(path, {"t": t, "T_m1": sensors[0], "T_m2": 1000.0 - sensors[1]})
+    for extra in ((), ("--output", str(tmp_path / "out.csv"))):
+        status, _, err = run_cli(capsys, "characterise", str(path), *extra)
+        assert status == 3
+        line = assert_one_error_line(err)
+        assert "T_m2 moves against T_m1 (gain -1" in line and "wrong sign" in line

@@ -301,3 +301,17 @@ def test_dropped_rows_are_bridged_not_refused(
     dead = [doc["final_params"]["delay"] for doc in docs]
     print("dead time intact / bridged:", dead)
     assert abs(dead[1] - dead[0]) <= 0.02 * dead[0], dead
+
+
+def test_a_sensor_that_does_not_follow_its_input_exits_3(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A stuck or disconnected sensor (its column constant): it was "explained" by an offset
+    and a gain of 3e-9, exit 0, beside a baseline fit of -7.7e295 %."""
+    data = np.genfromtxt(recording, delimiter=",", names=True)
+    path = _write_csv(tmp_path / "stuck.csv",
+                      {"t": data["t"], "T_ref": data["T_ref"], "T_m": np.full(data.size, 20.0)})
+    status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m"])
+    assert status == 3
+    line = _one_error_line(capsys)
+    assert "the output changes by 0 only" in line and "does not follow its input" in line

@@ -142,6 +142,15 @@ def diagnose(
             f"diagnose: the input changes by {np.ptp(u):.3g} only, within the noise "
             f"({max(sigma_u, sigma_y):.3g}): the sensor dynamics cannot be identified"
         )
+    if np.ptp(y) < max(20.0 * sigma_y, 1e-9):
+        # a sensor that does not follow its input (disconnected, stuck, the wrong column) was
+        # "explained" by a gain of 3e-9 and an offset
+        raise EstimationError(
+            f"diagnose: the output changes by {np.ptp(y):.3g} only, within its noise "
+            f"({sigma_y:.3g}), while the input changes by {np.ptp(u):.3g}: a sensor that does "
+            "not follow its input (disconnected or stuck, or the wrong column?) cannot be "
+            "diagnosed"
+        )
     v = None if flow is None else np.asarray(flow, dtype=float)
     context = context_for(u, ts, v)
     constants: dict[str, dict[str, float]] = {
