@@ -219,8 +219,8 @@ def load_recording(
         strict=strict,
     )
     segments = tuple(slice(start, stop) for start, stop in base.segments)
+    stamped = t.size
     if not base.uniform:
-        stamped = t.size
         t, data, segments = resample_segments(t, data, base)
     if not base.regular:
         scatter = base.jitter

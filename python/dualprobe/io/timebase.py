@@ -152,16 +152,12 @@ class TimeBase:
     jitter: float  # largest |interval - mean interval| within segments, s (0 when regular)
     regular: bool  # within rounding of a uniform clock inside every segment
     bridged: tuple[Gap, ...] = ()  # dropped rows inside segments, interpolated over
+    bridged_rows: int = 0  # the rows those intervals lost, which the bridging interpolates
 
     @property
     def uniform(self) -> bool:
         """The stamps are the grid: nothing to resample."""
         return self.regular and not self.bridged
-
-    @property
-    def bridged_rows(self) -> int:
-        """Rows the bridging interpolates (missing rows, counted in mean intervals)."""
-        return sum(max(round(gap.duration / self.interval) - 1, 1) for gap in self.bridged)
 
 
 def _first(mask: np.ndarray) -> int | None:
@@ -218,10 +214,10 @@ def analyse_time(
     # plus one (the mean interval of a jittering clock; leaving bridged intervals out would
     # bias it short, as they are the long tail of the jitter too)
     bridging = ~ordinary & ~is_gap
-    steps = int(np.count_nonzero(ordinary)) + int(np.sum(np.rint(dt[bridging] / median)))
+    rows = np.where(bridging, np.rint(dt / median), 1.0)  # grid steps of each interval
+    steps = int(np.sum(rows[~is_gap]))
     interval = float(np.sum(dt[~is_gap])) / steps if steps else median
-    _check_clock(t, dt, segments, np.where(bridging, np.rint(dt / median), 1.0), interval,
-                 median, where)
+    _check_clock(t, dt, segments, rows, interval, median, where)
     regular = not bool(np.any(off & ordinary))
     jitter = 0.0 if regular else float(np.max(np.abs(dt[ordinary] - interval)))
 
@@ -230,7 +226,8 @@ def analyse_time(
 
     gaps = tuple(gap(int(i)) for i in np.flatnonzero(is_gap))
     bridged = tuple(gap(int(i)) for i in np.flatnonzero(bridging))
-    return TimeBase(interval, segments, gaps, jitter, regular, bridged)
+    return TimeBase(interval, segments, gaps, jitter, regular, bridged,
+                    int(np.sum(rows[bridging])) - len(bridged))
 
 
 def _check_clock(t: np.ndarray, dt: np.ndarray, segments: tuple[tuple[int, int], ...],

@@ -134,6 +134,7 @@ def despike(x: np.ndarray) -> tuple[np.ndarray, Spikes]:
     starts, lengths, threshold = find_spikes(x)
     rows = (np.concatenate([np.arange(s, s + m) for s, m in zip(starts, lengths, strict=True)])
             if starts.size else np.zeros(0, np.intp))
+    replaced = rows.size <= MAX_SHARE * x.size
     sizes = np.zeros(starts.size)
     cleaned = x.copy()
     for i, (start, length) in enumerate(zip(starts, lengths, strict=True)):
@@ -141,8 +142,6 @@ def despike(x: np.ndarray) -> tuple[np.ndarray, Spikes]:
         chord = left + (right - left) * np.arange(1, length + 1) / (length + 1)
         departure = x[start : start + length] - chord
         sizes[i] = departure[int(np.argmax(np.abs(departure)))]
-        cleaned[start : start + length] = chord
-    replaced = rows.size <= MAX_SHARE * x.size
-    if not replaced:
-        cleaned = x.copy()
+        if replaced:
+            cleaned[start : start + length] = chord
     return cleaned, Spikes(rows, starts, sizes, threshold, replaced)

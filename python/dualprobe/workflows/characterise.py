@@ -20,6 +20,7 @@ from dualprobe.workflows.checks import (
     check_model,
     describe_stages,
     refuse_implausible,
+    refuse_opposed,
     refuse_undetermined,
     spurious_shared_stage,
     undetermined_gain,
@@ -246,13 +247,7 @@ def characterise_arrays(
             "order chosen by evidence: first order fits both sensors (a second stage, if any, "
             "is below what the data resolve or common to both)")
     static = _relative_static(estimate)
-    if static is not None and not static[0] > 0.0:
-        # the cross-relation is blind to the sign of the gain: an inverted channel gave both
-        # time constants right, "ok", and no reconstruction
-        raise EstimationError(
-            f"{columns[1]} moves against {columns[0]} (gain {static[0]:.3g} relative to it): "
-            "two sensors in one gas rise and fall together, so one column has the wrong sign "
-            "(an inverted channel, a reversed thermocouple) or is not a temperature")
+    refuse_opposed(static, columns)
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
     rmse: float | None = None

@@ -48,7 +48,8 @@ from dualprobe.estimation.settings import RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
 
 __all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "describe_stages",
-           "held_share", "refuse_implausible", "refuse_undetermined", "spurious_shared_stage",
+           "held_share", "refuse_implausible", "refuse_opposed", "refuse_undetermined",
+           "spurious_shared_stage",
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
@@ -329,6 +330,17 @@ def _advice(estimate: PairEstimate) -> str:
         return ("the time constants may follow more than the flow (the gas temperature, "
                 "sheaths with their own exponents)")
     return "the time constants may follow the gas flow (give --flow)"
+
+
+def refuse_opposed(static: tuple[float, float] | None, columns: tuple[str, str]) -> None:
+    """Refuse (EstimationError) a gain of sensor 2 relative to sensor 1 that is not positive.
+    The cross-relation is blind to the gain's sign: an inverted channel gave both time
+    constants right, "ok", and no reconstruction."""
+    if static is not None and not static[0] > 0.0:
+        raise EstimationError(
+            f"{columns[1]} moves against {columns[0]} (gain {static[0]:.3g} relative to it): "
+            "two sensors in one gas rise and fall together, so one column has the wrong sign "
+            "(an inverted channel, a reversed thermocouple) or is not a temperature")
 
 
 def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[str, str],
