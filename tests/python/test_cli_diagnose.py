@@ -303,6 +303,37 @@ def test_dropped_rows_are_bridged_not_refused(
     assert abs(dead[1] - dead[0]) <= 0.02 * dead[0], dead
 
 
+def test_missing_readings_are_dropped_rows(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Empty cells in the sensor's column at 6 places are the same 6 rows lost: the same
+    bridged record, so the same dead time to the last digit, and a note for each."""
+    data = np.genfromtxt(recording, delimiter=",", names=True)
+    rows = np.linspace(200, data.size - 200, 6).astype(int)
+    keep = np.ones(data.size, dtype=bool)
+    keep[rows] = False
+    lossy = _write_csv(tmp_path / "lossy.csv", {n: data[n][keep] for n in ("t", "T_ref", "T_m")})
+    empty = _write_csv(tmp_path / "empty.csv", {n: data[n] for n in ("t", "T_ref", "T_m")})
+    lines = empty.read_text().splitlines()
+    for row in rows:
+        lines[row + 1] = ",".join([*lines[row + 1].split(",")[:2], ""])
+    empty.write_text("\n".join(lines) + "\n")
+    docs = []
+    for path in (lossy, empty):
+        json_path = tmp_path / f"{path.stem}.json"
+        status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m",
+                       "--json", str(json_path)])
+        out = capsys.readouterr().out
+        assert status == 0, out
+        docs.append(json.loads(json_path.read_text()))
+    assert docs[1]["notes"][0].startswith("missing readings (empty or NaN cells): 'T_m' 6")
+    # the lines named differ (the lossy file has no line for a lost row), the counts do not
+    assert docs[1]["notes"][1].startswith("dropped rows: 6 intervals")
+    assert docs[0]["notes"][0].startswith("dropped rows: 6 intervals")
+    assert f"6 of {data.size} rows interpolated" in docs[1]["notes"][1]
+    assert docs[1]["final_params"]["delay"] == docs[0]["final_params"]["delay"]
+
+
 def test_a_sensor_that_does_not_follow_its_input_exits_3(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -171,3 +171,54 @@ def test_jittering_stamps_and_dropped_rows_are_resampled_not_refused(
     # the resampling's own error is ~1/20 of the gas error; 15 % leaves room for the noise
     # draws, which differ between the two records
     assert errors[1] <= 1.15 * errors[0]
+
+
+def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A logger that lost single frames of one channel (empty cells at 40 places, a `nan` at
+    30 more, the second sensor starting 5 rows late): once refused at the first empty cell,
+    now those rows are dropped and bridged like lost rows, said on a note line, and the gas is
+    as good as from the intact file (bridging 1-3 rows errs by hundredths of a kelvin against
+    a gas error of about 0.9 K, measured 0.88926 K against 0.88925 K; the two runs share the
+    noise draw, so 5 % is room for the interpolation alone). A missing flow value is still a
+    one-line input error (issue 11)."""
+    rng = np.random.default_rng(16)
+    conditions = sim.drive_cycle(900.0, rng)
+    rec = sim.simulate_field_pair(conditions, sim.FieldSensor(4.0, 0.5),
+                                  sim.FieldSensor(12.0, 0.5), sample_rate=10.0,
+                                  quantisation=0.02, rng=np.random.default_rng(17))
+    intact = tmp_path / "intact.csv"
+    write_columns(intact, {"t": rec.t, "T_m1": rec.t1, "T_m2": rec.t2, "mdot": rec.flow})
+    lines = intact.read_text().splitlines()
+    lost = tmp_path / "lost.csv"
+    for k in rng.choice(np.arange(100, rec.t.size - 100), 70, replace=False):
+        cells = lines[k + 1].split(",")
+        cells[1 + int(rng.integers(0, 2))] = "nan" if k % 7 == 0 else ""
+        lines[k + 1] = ",".join(cells)
+    for k in range(5):
+        cells = lines[k + 1].split(",")
+        cells[2] = ""
+        lines[k + 1] = ",".join(cells)
+    lost.write_text("\n".join(lines) + "\n")
+    errors = []
+    for path in (intact, lost):
+        out_path = tmp_path / f"out_{path.name}"
+        status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path)])
+        out = capsys.readouterr().out
+        assert status == 0, out
+        assert ("note: missing readings (empty or NaN cells)" in out) == (path == lost)
+        assert "warning" not in out, out
+        t, columns, _ = load_columns(out_path, ["T_g_hat"])
+        assert t is not None
+        truth = np.interp(t, conditions.t, conditions.gas)
+        errors.append(float(np.sqrt(np.mean((columns["T_g_hat"] - truth) ** 2))))
+    print("gas RMSE intact / with missing readings:", errors)
+    assert errors[1] <= 1.05 * errors[0]
+    lines[300] = ",".join([*lines[300].split(",")[:3], ""])
+    lost.write_text("\n".join(lines) + "\n")
+    capsys.readouterr()
+    status = main(["characterise", str(lost), "--flow", "mdot"])
+    captured = capsys.readouterr()
+    assert status == 2 and captured.out == ""
+    assert captured.err.strip().count("\n") == 0
+    assert "line 301, column 'mdot': missing reading" in captured.err

@@ -41,7 +41,8 @@ def diagnose_file(
     # the loader of characterise: clock jitter resampled, a few dropped rows bridged (each
     # said in a note), a gap refused naming it
     recording = load_recording(path, names, time=time or None, time_unit=time_unit,
-                               sample_interval=sample_interval, min_rows=MIN_SAMPLES)
+                               sample_interval=sample_interval, min_rows=MIN_SAMPLES,
+                               required=[flow_column] if flow_column else [])
     recording.require_contiguous("diagnose")
     columns = recording.columns
     try:

@@ -8,10 +8,11 @@ header line has none; blank lines and whitespace around cells are ignored; a uni
 the header (``s,degC,degC``) is refused (put the unit in the header: ``Time (ms)``).
 
 Fast path: the header is read here, the body by ``pyarrow.csv`` straight into float64 columns
-(no NaN-by-default strings, no empty cells); anything it refuses (an empty cell, text, a ragged
-row, a whitespace-only line) sends the file through the line-by-line reader, which names the
-line and column. File line numbers for later messages (time, non-finite values) are counted
-only when a message needs them.
+(no NaN-by-default strings; an empty cell is NaN, a missing reading: see
+:mod:`dualprobe.io.missing`); anything it refuses (text, a ragged row, a whitespace-only
+line) sends the file through the line-by-line reader, which names the line and column. File
+line numbers for later messages (time, non-finite values) are counted only when a message
+needs them.
 """
 
 from __future__ import annotations
@@ -136,7 +137,7 @@ def _is_number(cell: str) -> bool:
 def _parse_column(
     path: Path, name: str, index: int, data: list[list[str]], lines: list[int]
 ) -> np.ndarray:
-    cells = [row[index] for row in data]
+    cells = [row[index] or "nan" for row in data]  # an empty cell is a missing reading
     try:
         return np.array(cells, dtype=np.float64)
     except ValueError:
@@ -144,8 +145,6 @@ def _parse_column(
     # Slow path only to say exactly which cell is wrong.
     for position, (cell, line) in enumerate(zip(cells, lines, strict=True)):
         where = f"{path}: line {line}, column {name!r}"
-        if cell == "":
-            raise InputError(f"{where}: empty value") from None
         if not _is_number(cell):
             row = data[position]
             if position == 0 and not any(_is_number(c) for c in row):
@@ -198,10 +197,17 @@ def _data_lines(raw: bytes, body: int, first_line: int) -> np.ndarray:
 
 
 def _float64(column: Any) -> np.ndarray:
-    """A float64 column without nulls as one NumPy array, read from its chunks' data buffers
-    (pyarrow's ``to_numpy`` imports pandas on the way: ~50 MB and 0.3 s per run)."""
-    parts = [np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk),
-                           offset=8 * chunk.offset) for chunk in column.chunks]
+    """A float64 column as one NumPy array, nulls (empty cells) as NaN, read from its chunks'
+    data buffers (pyarrow's ``to_numpy`` imports pandas on the way: ~50 MB and 0.3 s per run)."""
+    parts = []
+    for chunk in column.chunks:
+        values = np.frombuffer(chunk.buffers()[1], dtype=np.float64, count=len(chunk),
+                               offset=8 * chunk.offset)
+        if chunk.null_count:
+            valid = np.unpackbits(np.frombuffer(chunk.buffers()[0], dtype=np.uint8),
+                                  bitorder="little")[chunk.offset : chunk.offset + len(chunk)]
+            values = np.where(valid.astype(bool), values, np.nan)
+        parts.append(values)
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
@@ -228,7 +234,8 @@ def _fast_columns(
             convert_options=pacsv.ConvertOptions(
                 column_types={name: pa.float64() for name in actual},
                 include_columns=actual,
-                null_values=[],
+                # an empty cell is a missing reading (NaN; io.missing decides what it costs)
+                null_values=[""],
                 strings_can_be_null=False,
                 quoted_strings_can_be_null=False,
             ),

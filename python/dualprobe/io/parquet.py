@@ -1,9 +1,10 @@
 """Parquet recordings (``pyarrow.parquet``): one column per signal, one row per sample.
 
 Numeric columns (integers, floats, decimals) are read as float64; a timestamp or duration time
-column becomes seconds from its first value (its unit is the column type's). A null is refused
-naming its row (1-based, as a table viewer numbers them) and column; a column that is not
-numeric is refused naming its type.
+column becomes seconds from its first value (its unit is the column type's). A null is a missing
+reading, NaN (:mod:`dualprobe.io.missing`), except in a timestamp column, where it is refused
+naming its row (1-based, as a table viewer numbers them); a column that is not numeric is
+refused naming its type.
 """
 
 from __future__ import annotations
@@ -32,11 +33,11 @@ def _as_float(source: str, name: str, column: Any, *, time: bool) -> np.ndarray:
     import pyarrow.compute as pc
 
     kind = column.type
-    nulls = column.null_count
-    if nulls:
+    stamped = pa.types.is_timestamp(kind) or pa.types.is_duration(kind)
+    if column.null_count and time and stamped:
         first = int(np.flatnonzero(column.is_null().to_numpy(zero_copy_only=False))[0])
-        raise InputError(f"{source}: row {first + 1}, column {name!r}: missing value (null)")
-    if time and (pa.types.is_timestamp(kind) or pa.types.is_duration(kind)):
+        raise InputError(f"{source}: row {first + 1}, column {name!r}: missing time stamp (null)")
+    if time and stamped:
         ticks = column.cast(pa.int64()).to_numpy()
         seconds = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
         return (ticks - ticks[0]).astype(np.float64) * seconds
@@ -44,7 +45,9 @@ def _as_float(source: str, name: str, column: Any, *, time: bool) -> np.ndarray:
         pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_decimal(kind)
     ):
         raise InputError(f"{source}: column {name!r} holds {kind}, not numbers")
-    return np.asarray(pc.cast(column, pa.float64()).to_numpy(), dtype=np.float64)
+    # a null is a missing reading: NaN (io.missing decides what it costs)
+    values = pc.fill_null(pc.cast(column, pa.float64()), float("nan"))
+    return np.asarray(values.to_numpy(), dtype=np.float64)
 
 
 def read_parquet(

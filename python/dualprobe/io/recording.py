@@ -21,6 +21,7 @@ import numpy as np
 from dualprobe.io.csv import read_csv
 from dualprobe.io.errors import InputError
 from dualprobe.io.mdf import MDF_MAGIC, read_mdf
+from dualprobe.io.missing import drop_missing
 from dualprobe.io.parquet import PARQUET_MAGIC, read_parquet
 from dualprobe.io.table import Table
 from dualprobe.io.timebase import (
@@ -29,6 +30,7 @@ from dualprobe.io.timebase import (
     Gap,
     analyse_time,
     resample_segments,
+    stamp_resolution,
     time_unit_factor,
     time_unit_of,
 )
@@ -133,13 +135,14 @@ def _time_unit(table: Table, option: str | None) -> tuple[float, str | None]:
 
 
 def _check_finite(table: Table, columns: dict[str, np.ndarray]) -> None:
+    """Refuse infinity (a wrong reading); NaN is a missing one (:mod:`dualprobe.io.missing`)."""
     for name, values in columns.items():
-        bad = np.flatnonzero(~np.isfinite(values))
+        bad = np.flatnonzero(np.isinf(values))
         if bad.size:
             first = int(bad[0])
             raise InputError(
                 f"{table.source}: {table.row_label(first)}, column {table.names.get(name, name)!r}"
-                f": non-finite value {values[first]!r}"
+                f": non-finite value {float(values[first])!r}"
             )
 
 
@@ -153,6 +156,7 @@ def load_recording(
     min_rows: int = 10,
     raster: str | None = None,
     strict: bool = False,
+    required: Sequence[str] = (),
 ) -> Recording:
     """Load columns of a recording in any supported format (CSV, Parquet, MDF4).
 
@@ -171,7 +175,10 @@ def load_recording(
     raster:
         MDF4: the channel whose group's time base is used (default: ``columns[0]``).
     strict:
-        Refuse jitter and gaps instead of resampling / splitting.
+        Refuse jitter, gaps and missing readings instead of resampling / splitting / dropping.
+    required:
+        Columns in which a missing reading (empty cell, NaN, null) is refused rather than
+        dropped with its row (:mod:`dualprobe.io.missing`).
 
     Raises
     ------
@@ -194,32 +201,61 @@ def load_recording(
     if size < min_rows:
         raise InputError(f"{path}: too few data rows ({size}; need at least {min_rows})")
     stamps = table.time
-    _check_finite(table, data if stamps is None else {**data, time or "time": stamps})
-    if stamps is None:
-        if sample_interval is None:
-            raise InputError(f"{path}: no time column; give the sample interval")
-        t = np.arange(size, dtype=np.float64) * sample_interval
-        whole = (slice(0, size),)
-        return Recording(t, data, float(sample_interval), whole, (), (), str(path), kind)
+    checked = data if stamps is None else {**data, time or "time": stamps}
+    _check_finite(table, checked)
+    if stamps is None and sample_interval is None:
+        raise InputError(f"{path}: no time column; give the sample interval")
+    names = {**table.names, **({time or "time": table.time_name} if table.time_name else {})}
+    dropped = drop_missing(str(path), checked, names, table.row_label, strict=strict,
+                           required=required)
+    resolution = table.resolution
+    rows: np.ndarray | None = None  # the file's rows kept, when some were dropped
 
-    factor, unit_note = _time_unit(table, time_unit)
+    def label(row: int) -> str:
+        return table.row_label(row if rows is None else int(rows[row]))
+
+    if dropped is not None:
+        rows = dropped.rows
+        if rows.size < min_rows:
+            raise InputError(
+                f"{path}: too few rows with a reading in every column ({rows.size}; need at "
+                f"least {min_rows})"
+            )
+        notes.append(dropped.note)
+        data = {name: values[rows] for name, values in data.items()}
+        if stamps is None:
+            # rows lost without a time column: the row numbers are the clock
+            stamps = rows.astype(np.float64) * float(sample_interval or 1.0)
+        else:
+            stamps = kept = stamps[rows]
+            if not table.fixed_unit:  # the printed resolution of the stamps left (no NaN)
+                resolution = lambda: stamp_resolution(kept)  # noqa: E731
+    elif stamps is None:
+        t = np.arange(size, dtype=np.float64) * float(sample_interval or 1.0)
+        whole = (slice(0, size),)
+        return Recording(t, data, float(sample_interval or 1.0), whole, (), (), str(path), kind)
+
+    if table.time is None:
+        factor, unit_note = 1.0, None
+    else:
+        factor, unit_note = _time_unit(table, time_unit)
     if unit_note:
         notes.append(unit_note)
     t = stamps * factor if factor != 1.0 else np.asarray(stamps, dtype=np.float64)
     time_name = table.time_name
 
     def where(row: int) -> str:
-        return f"{path}: {table.row_label(row)}, column {time_name!r}"
+        return f"{path}: {label(row)}, column {time_name!r}"
 
     base = analyse_time(
         t,
         where,
-        label=table.row_label,
-        resolution=lambda: table.resolution() * factor,
+        label=label,
+        resolution=lambda: resolution() * factor,
         strict=strict,
     )
     segments = tuple(slice(start, stop) for start, stop in base.segments)
-    stamped = t.size
+    stamped = size
     if not base.uniform:
         t, data, segments = resample_segments(t, data, base)
     if not base.regular:
@@ -239,7 +275,7 @@ def load_recording(
             f"({100.0 * base.bridged_rows / t.size:.2g} %; {stamped} rows in the file)"
         )
     notes.extend(f"{gap}: the record is split there" for gap in base.gaps)
-    if base.interval >= _LONG_INTERVAL and time_unit is None and unit_note is None:
+    if base.interval >= _LONG_INTERVAL and time_name and time_unit is None and unit_note is None:
         if not table.fixed_unit and time_unit_of(time_name or "") is None:
             notes.append(
                 f"time column {time_name!r} read in seconds (interval {base.interval:.6g} s); "

@@ -333,14 +333,17 @@ def load_pair(
     time: str | None = "t",
     time_unit: str | None = None,
     sample_interval: float | None = None,
+    required: Sequence[str] = (),
 ) -> Recording:
     """Load the columns of a recording in any format (CSV, Parquet, MDF4) for characterise:
-    jitter resampled, units converted (notes say so); a record with a gap is refused with a
-    message naming the gap (until the estimation uses the segments together)."""
+    jitter resampled, units converted, rows with a missing reading dropped and bridged (notes
+    say so; a missing value in a ``required`` column is refused); a record with a gap is
+    refused with a message naming the gap (until the estimation uses the segments together)."""
     if not time and sample_interval is None:
         raise InputError("without a time column the sample interval must be given")
     recording = load_recording(
-        path, columns, time=time or None, time_unit=time_unit, sample_interval=sample_interval
+        path, columns, time=time or None, time_unit=time_unit, sample_interval=sample_interval,
+        required=required,
     )
     recording.require_contiguous("characterise")
     return recording
@@ -375,8 +378,10 @@ def characterise_file(
     if flow is not None and flow in (sensor1, sensor2):
         raise InputError(f"--flow {flow!r} names a sensor column")
     wanted = [sensor1, sensor2] + ([reference] if reference else []) + ([flow] if flow else [])
+    # the flow and the reference are not readings to bridge: a missing value there is refused
     recording = load_pair(
-        path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval
+        path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval,
+        required=[name for name in (reference, flow) if name],
     )
     columns = recording.columns
     result = characterise_arrays(

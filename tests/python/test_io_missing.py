@@ -1,0 +1,140 @@
+"""Missing readings (empty cells, NaN, Parquet nulls): a row without a reading in every
+requested column is a dropped row; short runs are bridged, long ones split the record, rows at
+the ends trim it, a channel of another rate is refused, and the strict loader names the cell."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dualprobe.io import InputError, load_columns, load_recording
+
+TS = 0.1
+
+
+def signals(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Smooth sensor-like signals: |x''| <= 0.3 * 0.8^2 + 0.5 * 0.3^2 = 0.237 K/s^2."""
+    return 300.0 + 0.3 * np.sin(0.8 * t), 300.0 + 0.5 * np.cos(0.3 * t)
+
+
+def write(path: Path, t: np.ndarray | None, x: np.ndarray, y: np.ndarray,
+          empty: dict[str, list[int]], text: str = "") -> Path:
+    """A CSV whose cells listed in ``empty`` (column -> rows) hold ``text`` ("" or "nan")."""
+    header = ["T_m1", "T_m2"] if t is None else ["t", "T_m1", "T_m2"]
+    lines = [",".join(header)]
+    for k in range(x.size):
+        cells = {"t": "" if t is None else f"{t[k]:.1f}", "T_m1": repr(float(x[k])),
+                 "T_m2": repr(float(y[k]))}
+        for column, rows in empty.items():
+            if k in rows:
+                cells[column] = text
+        lines.append(",".join(cells[name] for name in header))
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def refusal(path: Path, **kwargs: object) -> str:
+    with pytest.raises(InputError) as info:
+        load_recording(path, ["T_m1", "T_m2"], **kwargs)  # type: ignore[arg-type]
+    text = str(info.value)
+    assert "\n" not in text
+    return text
+
+
+@pytest.mark.parametrize("text", ["", "nan", "NaN"])
+def test_missing_readings_are_dropped_rows_bridged_and_trimmed(tmp_path: Path, text: str) -> None:
+    t = np.arange(400) * TS
+    x, y = signals(t)
+    # the second channel starts 2 rows late, the first stops a row early, and 1-3 readings
+    # are lost inside (one of them in both channels at once)
+    empty = {"T_m1": [50, 51, 52, 200, 399], "T_m2": [0, 1, 120, 200, 300, 301]}
+    rec = load_recording(write(tmp_path / "m.csv", t, x, y, empty, text), ["T_m1", "T_m2"])
+    assert rec.contiguous
+    assert rec.t[0] == pytest.approx(0.2) and rec.t[-1] == pytest.approx(39.8)
+    assert np.allclose(np.diff(rec.t), TS)
+    note = next(n for n in rec.notes if n.startswith("missing readings"))
+    assert "'T_m1' 5 (first at line 52)" in note and "'T_m2' 6 (first at line 2)" in note
+    assert "10 rows of 400 treated as dropped rows, 3 of them at the ends (trimmed)" in note
+    assert any("dropped rows: 4 intervals" in n for n in rec.notes), rec.notes
+    # linear interpolation over at most 4 intervals: h^2 max|x''| / 8 = 0.4^2 * 0.237 / 8
+    bound = 0.4**2 * 0.237 / 8 + 1e-12
+    tx, ty = signals(rec.t)
+    assert np.max(np.abs(rec.columns["T_m1"] - tx)) <= bound
+    assert np.max(np.abs(rec.columns["T_m2"] - ty)) <= bound
+
+
+def test_without_a_time_column_the_row_numbers_are_the_clock(tmp_path: Path) -> None:
+    t = np.arange(100) * TS
+    x, y = signals(t)
+    path = write(tmp_path / "n.csv", None, x, y, {"T_m2": [40, 41]})
+    rec = load_recording(path, ["T_m1", "T_m2"], time=None, sample_interval=TS)
+    assert rec.t.size == 100 and rec.sample_interval == pytest.approx(TS)
+    assert np.max(np.abs(rec.columns["T_m2"] - signals(rec.t)[1])) <= 0.3**2 * 0.237 / 8 + 1e-12
+    assert any("'T_m2' 2 (first at line 42)" in n for n in rec.notes)
+
+
+def test_a_long_run_splits_the_record_and_characterise_is_told_where(tmp_path: Path) -> None:
+    t = np.arange(300) * TS
+    x, y = signals(t)
+    rec = load_recording(write(tmp_path / "l.csv", t, x, y, {"T_m1": list(range(100, 106))}),
+                         ["T_m1", "T_m2"])
+    assert len(rec.gaps) == 1 and rec.gaps[0].label == "line 108"
+    with pytest.raises(InputError, match=r"line 108 .*gap of 0.7 s.*cut the file at the gap"):
+        rec.require_contiguous("characterise")
+
+
+def test_a_channel_of_another_rate_is_refused_not_thinned(tmp_path: Path) -> None:
+    """Every other cell empty: dropping those rows would halve the rate unnoticed."""
+    t = np.arange(200) * TS
+    x, y = signals(t)
+    path = write(tmp_path / "r.csv", t, x, y, {"T_m2": list(range(1, 200, 2))})
+    text = refusal(path)
+    assert "column 'T_m2' has readings in only 100 of the 199 rows" in text
+    assert "different rates" in text
+
+
+def test_refusals_name_what_is_missing(tmp_path: Path) -> None:
+    t = np.arange(50) * TS
+    x, y = signals(t)
+    nothing = write(tmp_path / "a.csv", t, x, y, {"T_m1": list(range(0, 50, 2)),
+                                                  "T_m2": list(range(1, 50, 2))})
+    assert "no row has a reading in every column" in refusal(nothing)
+    few = write(tmp_path / "f.csv", t, x, y, {"T_m1": list(range(0, 44))})
+    assert "too few rows with a reading in every column (6" in refusal(few)
+    stamp = write(tmp_path / "s.csv", t, x, y, {})
+    lines = stamp.read_text().splitlines()
+    lines[10] = "," + lines[10].split(",", 1)[1]  # a row without a time stamp is a dropped row
+    stamp.write_text("\n".join(lines) + "\n")
+    rec = load_recording(stamp, ["T_m1", "T_m2"])
+    assert rec.t.size == 50 and any("'t' 1 (first at line 11)" in n for n in rec.notes)
+    infinite = write(tmp_path / "i.csv", t, x, y, {"T_m2": [7]}, "inf")
+    assert "line 9, column 'T_m2': non-finite value inf" in refusal(infinite)
+
+
+def test_the_strict_loader_names_the_first_missing_cell(tmp_path: Path) -> None:
+    t = np.arange(50) * TS
+    x, y = signals(t)
+    path = write(tmp_path / "s.csv", t, x, y, {"T_m2": [20], "T_m1": [30]})
+    with pytest.raises(InputError, match=r"line 22, column 'T_m2': missing reading"):
+        load_columns(path, ["T_m1", "T_m2"])
+
+
+def test_parquet_nulls_are_missing_readings_as_in_csv(tmp_path: Path) -> None:
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t = np.arange(200) * TS
+    x, y = signals(t)
+    lost = [30, 31, 150]
+    column = pa.array([None if k in lost else float(v) for k, v in enumerate(y)],
+                      type=pa.float64())
+    pq.write_table(pa.table({"t": t, "T_m1": x, "T_m2": column}), tmp_path / "p.parquet")
+    from_parquet = load_recording(tmp_path / "p.parquet", ["T_m1", "T_m2"])
+    from_csv = load_recording(write(tmp_path / "p.csv", t, x, y, {"T_m2": lost}),
+                              ["T_m1", "T_m2"])
+    assert np.allclose(from_parquet.t, from_csv.t)
+    for name in ("T_m1", "T_m2"):
+        assert np.allclose(from_parquet.columns[name], from_csv.columns[name], rtol=0, atol=1e-12)
+    assert any("'T_m2' 3 (first at row 31)" in n for n in from_parquet.notes)
