@@ -28,6 +28,7 @@ __all__ = [
     "Floor",
     "channel_noise",
     "jump_density",
+    "perfect_model_floor",
     "refine_noise",
     "roughness_floor",
     "sampling_floor",
@@ -99,6 +100,19 @@ class Floor:
                 level = self.white + self.roughness + float(np.mean(self.jump_density[rows]))
                 out[name] = (rows, level)
         return out
+
+
+def perfect_model_floor(u: np.ndarray, ts: float, tau: float, sigma_u: float, sigma_y: float,
+                        *, interpolated: bool = True) -> Floor:
+    """The floor of a model of dominant time constant ``tau`` driven by the reference ``u``:
+    the output's white noise and the reference's through the sensor, and, when the model
+    interpolates the reference between samples (not when it holds it, as the paper's eq. 8
+    does), the residue of its jumps and of its roughness."""
+    white = sigma_y**2 + sensor_noise_gain(ts, tau) * sigma_u**2
+    if not interpolated:
+        return Floor(white, 0.0, 0.0, np.zeros(u.size))
+    return Floor(white, sampling_floor(u, ts, tau, sigma_u), roughness_floor(u, ts, tau, sigma_u),
+                 jump_density(u, ts, tau, sigma_u))
 
 
 def jump_density(u: np.ndarray, ts: float, tau: float, sigma_u: float) -> np.ndarray:

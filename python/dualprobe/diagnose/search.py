@@ -18,9 +18,8 @@ from dualprobe.diagnose.evidence import SIGNIFICANCE_LEVEL, Judge, choose
 from dualprobe.diagnose.fit import ModelFit, Problem, best_of, fit_model
 from dualprobe.diagnose.floors import (
     ChannelNoise,
-    Floor,
     channel_noise,
-    jump_density,
+    perfect_model_floor,
     refine_noise,
     roughness_floor,
     sampling_floor,
@@ -320,15 +319,8 @@ def diagnose(
     step_ts = ts * (rows.step or 1)
     tests_final = residual_tests(final.residual[rows], u[rows], step_ts, final.tau)
     misfit = localise(final, u, t, ts, math.sqrt(judge.floor), v)
-    interpolated = not problem.fixed
-    floor = Floor(
-        white=white_floor,
-        jumps=jumps if interpolated else 0.0,
-        roughness=rough if interpolated else 0.0,
-        jump_density=jump_density(u, ts, baseline.tau, sigma_u)
-        if interpolated
-        else np.zeros(u.size),
-    )
+    floor = perfect_model_floor(u, ts, baseline.tau, sigma_u, sigma_y,
+                                interpolated=not problem.fixed)
     named = [s.effect for s in steps]
     verdict = decide(
         named, baseline.residual, final.residual, floor, tests_final["ljung_box_p"], misfit
