@@ -18,6 +18,7 @@ from dualprobe.cli.common import (
 from dualprobe.identify import HOLDS, check_gain, fit_step, fit_transfer_function
 from dualprobe.io import load_recording
 from dualprobe.report.json import write_json
+from dualprobe.workflows.identification import check_identified
 
 __all__ = ["register", "run"]
 
@@ -30,9 +31,10 @@ def register(subparsers: Any) -> None:
         description="Output-error fit of a continuous-time transfer function (optionally with "
         "dead time and offset) from an input column (reference measurement) to an output column "
         "(sensor). Reports the parameters with 1-sigma uncertainties, RMSE, fit %% (NRMSE), "
-        "AICc and BIC. With --step and no --input: a plunge test, the sensor's response to an "
-        "ideal step at an unknown instant (found in the data, with both levels; order 1 or 2 "
-        "chosen by BIC unless --order is given).",
+        "AICc and BIC, and whether the model explains the data (its residual against the "
+        "noise floor: a warning line names a structured misfit). With --step and no --input: "
+        "a plunge test, the sensor's response to an ideal step at an unknown instant (found "
+        "in the data, with both levels; order 1 or 2 chosen by BIC unless --order is given).",
     )
     parser.add_argument(
         "data", metavar="DATA", help="recording: CSV (header row), Parquet or MDF4 (.mf4)"
@@ -139,10 +141,13 @@ def run(args: argparse.Namespace) -> int:
         )
         if not args.any_gain:
             check_gain(fit)
+        check = check_identified(recording.columns[args.input], y, fit)
         print(f"{args.data}: {args.input} -> {args.output}")
         print(fit.summary())
+        print(check.summary_line())
         document["input"] = args.input
         document.update(fit.to_dict())
+        document["model_check"] = check.to_json_dict()
     document["notes"] = list(recording.notes)
     if args.json is not None:
         write_json(document, args.json)
