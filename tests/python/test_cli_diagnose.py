@@ -346,3 +346,26 @@ def test_a_sensor_that_does_not_follow_its_input_exits_3(
     assert status == 3
     line = _one_error_line(capsys)
     assert "the output changes by 0 only" in line and "does not follow its input" in line
+
+
+def test_a_short_record_is_diagnosed_not_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """60 rows (the minimum is 50): the whiteness test asked for 25 lags of an
+    autocorrelation computed to n/4 = 15 and the record was refused with "operands could not
+    be broadcast together". A first-order sensor behind a step: nothing missing."""
+    rng = np.random.default_rng(1)
+    t = np.arange(60) * 0.5
+    u = np.where(t > 3.0, 80.0, 20.0) + 0.05 * rng.standard_normal(t.size)
+    a, y = np.exp(-0.5 / 4.0), np.full(t.size, 20.0)
+    for k in range(1, t.size):
+        y[k] = a * y[k - 1] + (1.0 - a) * u[k - 1]
+    y += 0.05 * rng.standard_normal(t.size)
+    path = _write_csv(tmp_path / "short.csv", {"t": t, "T_ref": u, "T_m": y})
+    json_path = tmp_path / "short.json"
+    status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m",
+                   "--json", str(json_path)])
+    assert status == 0, capsys.readouterr().err
+    doc = json.loads(json_path.read_text())
+    assert doc["verdict"] == "nothing_missing"
+    assert doc["baseline"]["params"]["tau"] == pytest.approx(4.0, rel=0.1)
