@@ -35,6 +35,27 @@ def test_noise_floor_only_for_quantised_data(order: int) -> None:
     assert estimate_noise_std(parabola, max(order, 3)) == pytest.approx(0.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("order", ORDERS)
+def test_noise_of_quantised_data_that_move_on_most_rows_is_the_rounding(order: int) -> None:
+    """A plunge into a drifting bath through a 0.1 K ADC, 3 mK of noise: the reading moves on
+    most rows (so the held-data floor did not apply) and most second differences are float
+    rounding: the estimate was 3e-14 K. The readings lie on the ADC's lattice with a few step
+    sizes: the rounding noise q / sqrt(12) is the floor (order 3's differences see a little
+    more). A straight line (one step size) and a parabola on a lattice (all steps different)
+    are not quantised data."""
+    q, rng = 0.1, np.random.default_rng(6)
+    t = np.arange(1200) * 0.1
+    plunge = (20.0 + 330.0 * -np.expm1(-t / 12.0) + 0.15 * t
+              + 0.003 * rng.standard_normal(t.size))
+    quantised = q * np.round(plunge / q)
+    assert np.mean(np.diff(quantised) == 0.0) < 0.5  # moves on most rows
+    floor = q / math.sqrt(12.0)
+    estimate = estimate_noise_std(quantised, order)
+    assert estimate >= floor * (1 - 1e-9)
+    assert order == 1 or estimate < 1.2 * floor  # first differences see the drift itself
+    assert estimate_noise_std(np.arange(200) * 0.3, order) == pytest.approx(0.0, abs=1e-12)
+
+
 def test_noise_of_white_noise_on_a_smooth_signal() -> None:
     rng = np.random.default_rng(5)
     t = np.arange(20_000) * 0.1

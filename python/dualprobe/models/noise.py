@@ -77,9 +77,24 @@ def estimate_noise_std(x: np.ndarray, order: int) -> float:
 
 def quantisation_floor(x: np.ndarray) -> float:
     """``q / sqrt(12)`` when most first differences of ``x`` are exactly zero (quantised or
-    held data; ``q`` the smallest non-zero step), else 0."""
-    steps = np.abs(np.diff(np.asarray(x, dtype=float)))
+    held data), or when the readings lie on the lattice of ``q`` and their steps take a few
+    lattice values (quantised data that move on most rows: a plunge through 0.1 K steps at
+    several steps a row left second differences of float rounding only, and a noise level of
+    3e-14 K); ``q`` the smallest non-zero step. Else 0: a smooth signal can lie on a lattice
+    too (k^2 h^2), but its steps are all different; a straight line has one step, no rounding.
+    """
+    arr = np.asarray(x, dtype=float)
+    steps = np.abs(np.diff(arr))
     moving = steps[steps > 0.0]
-    if steps.size == 0 or moving.size == 0 or 2 * moving.size >= steps.size:
+    if steps.size == 0 or moving.size == 0:
         return 0.0
-    return float(np.min(moving)) / math.sqrt(12.0)
+    q = float(np.min(moving))
+    if 2 * moving.size < steps.size:
+        return q / math.sqrt(12.0)
+    lattice = (arr - arr[0]) / q
+    # 1e-3 of a step: far above float rounding of k q for any k a record holds, far below the
+    # spread of unquantised readings, whose smallest step is itself a chance value
+    if float(np.max(np.abs(lattice - np.rint(lattice)))) >= 1e-3:
+        return 0.0
+    kinds = np.unique(np.rint(np.diff(lattice))).size
+    return q / math.sqrt(12.0) if 2 <= kinds <= max(8, steps.size // 20) else 0.0
