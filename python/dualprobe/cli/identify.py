@@ -18,7 +18,7 @@ from dualprobe.cli.common import (
 from dualprobe.identify import HOLDS, check_gain, fit_step, fit_transfer_function
 from dualprobe.io import load_recording
 from dualprobe.report.json import write_json
-from dualprobe.workflows.identification import check_identified
+from dualprobe.workflows.identification import check_identified, check_plunge
 
 __all__ = ["register", "run"]
 
@@ -125,9 +125,12 @@ def run(args: argparse.Namespace) -> int:
     if args.step:
         # The step model is analytic in time: the rows' own instants, gaps included.
         step = fit_step(recording.t, y, order=args.order, bath=args.bath)
+        check = check_plunge(recording.t, y, step)
         print(f"{args.data}: plunge test of {args.output}")
         print(step.summary())
+        print(check.summary_line())
         document.update(step.to_dict())
+        document["model_check"] = check.to_json_dict()
     else:
         recording.require_contiguous("identify")
         fit = fit_transfer_function(

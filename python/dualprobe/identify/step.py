@@ -273,6 +273,9 @@ def _statistics(
     residual = problem.y - problem.output(theta)
     jac = np.empty((problem.y.size, theta.size))
     scale = np.maximum(np.abs(theta), 1e-3)
+    # a time constant's step is relative: an absolute one crossed zero when a degenerate
+    # order-2 fit drove tau_b towards 0 (a drifting bath), and exp(-s / tau) overflowed
+    scale[3:] = np.maximum(taus, np.finfo(float).tiny)
     for j in range(theta.size):
         step = 1e-6 * scale[j]
         hi, lo = theta.copy(), theta.copy()

@@ -19,6 +19,11 @@ hidden dead time of 0.5 s 3.5-3.8 times, 1.0 with ``--delay``. With references l
 by 0.2-3 % of the sensor's time constant, at large steps and low noise; the transfer function
 from a lagging reference is a lead-lag no order holds, its time constant comes out short by
 about the reference's lag, and the warning is right.
+
+Plunge tests (:func:`check_plunge`): the step is ideal and its instant continuous, so the floor
+is the readings' noise. On 60 plunges (order 1 and 2, 5-100 Hz, ADC 0-0.25 K, readings held
+1-4 rows) the order chosen by BIC left 0.55-1.36 times it; a bath drifting by 0.05 K/s after
+the plunge 1.8-48 times.
 """
 
 from __future__ import annotations
@@ -32,9 +37,10 @@ import numpy as np
 from dualprobe.diagnose.floors import channel_noise, perfect_model_floor, refine_noise
 from dualprobe.diagnose.residuals import residual_tests
 from dualprobe.diagnose.verdict import MISFIT_LIMIT, STRUCTURE_P, misfit_ratios
-from dualprobe.identify import TfFit, simulate_fit
+from dualprobe.identify import StepFit, TfFit, simulate_fit
+from dualprobe.identify.step import step_response
 
-__all__ = ["IdentifyCheck", "check_identified"]
+__all__ = ["IdentifyCheck", "check_identified", "check_plunge"]
 
 
 @dataclass(frozen=True)
@@ -97,3 +103,25 @@ def check_identified(u: np.ndarray, y: np.ndarray, fit: TfFit) -> IdentifyCheck:
     structured = ratio > MISFIT_LIMIT and p <= STRUCTURE_P
     return IdentifyCheck(not structured, float(ratio), math.sqrt(floor.total), p,
                          _advice(fit) if structured else "")
+
+
+def check_plunge(t: np.ndarray, y: np.ndarray, fit: StepFit) -> IdentifyCheck:
+    """Check a plunge fit against the readings' noise (its estimate, never below the ADC's
+    rounding): the step is ideal and its instant continuous, so a perfect model leaves the
+    noise alone. On the refresh rows when the reading is held, as the fit is."""
+    rows = np.arange(fit.hold_phase, y.size, fit.hold)
+    stamps = t[rows]
+    level = fit.initial_level + (fit.final_level - fit.initial_level) * step_response(
+        stamps - fit.onset, fit.taus)
+    residual = y[rows] - level
+    noise = max(fit.noise_std, fit.quantisation / math.sqrt(12.0), 1e-12)
+    ratio = math.sqrt(float(np.mean(residual**2))) / noise
+    ts = float(np.median(np.diff(stamps)))
+    plunged = (stamps > fit.onset).astype(float)
+    p = float(residual_tests(residual, plunged, ts, fit.taus[0])["ljung_box_p"])
+    structured = ratio > MISFIT_LIMIT and p <= STRUCTURE_P
+    bath = "check that the bath held one temperature (no drift, the sensor fully immersed)"
+    advice = (f"try a second stage (--order 2), or {bath}" if fit.order == 1 else
+              f"{bath}; an effect no step response has (hysteresis, heat conducted along the "
+              "sheath) is left too")
+    return IdentifyCheck(not structured, ratio, noise, p, advice if structured else "")
