@@ -369,3 +369,26 @@ def test_a_short_record_is_diagnosed_not_refused(
     doc = json.loads(json_path.read_text())
     assert doc["verdict"] == "nothing_missing"
     assert doc["baseline"]["params"]["tau"] == pytest.approx(4.0, rel=0.1)
+
+
+@pytest.mark.parametrize(("scale", "offset", "shown"), [(0.041, 0.0, "0.041"),
+                                                         (-1.0, 1000.0, "-1")])
+def test_an_output_in_other_units_exits_3(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], scale: float, offset: float, shown: str
+) -> None:
+    """A thermocouple logged in mV (41 uV/K) was "partly explained by offset, gain, extra_pole"
+    with a gain of -117 and a 3000 s pole, exit 0; an inverted channel likewise. The static
+    gain against the reference is estimated first and refused outside 0.5-2, as identify does."""
+    rng = np.random.default_rng(3)
+    t = np.arange(600) * 0.5
+    u = np.interp(t, [0, 50, 51, 150, 151, 300], [20, 20, 80, 80, 40, 40])
+    u = u + 0.05 * rng.standard_normal(t.size)
+    a, y = np.exp(-0.5 / 4.0), np.full(t.size, 20.0)
+    for k in range(1, t.size):
+        y[k] = a * y[k - 1] + (1.0 - a) * u[k - 1]
+    y = offset + scale * y + 0.05 * abs(scale) * rng.standard_normal(t.size)
+    path = _write_csv(tmp_path / "units.csv", {"t": t, "T_ref": u, "T_m": y}, fmt="%.7g")
+    status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m"])
+    line = _one_error_line(capsys)
+    assert status == 3
+    assert f"static gain of {shown}" in line and "different units" in line

@@ -33,6 +33,7 @@ from dualprobe.diagnose.result import Diagnosis, Step
 from dualprobe.diagnose.starts import candidate_starts
 from dualprobe.diagnose.verdict import decide
 from dualprobe.io import EstimationError
+from dualprobe.models.gain import GAIN_RANGE, static_gain
 
 __all__ = [
     "MIN_SAMPLES",
@@ -149,6 +150,17 @@ def diagnose(
             f"({sigma_y:.3g}), while the input changes by {np.ptp(u):.3g}: a sensor that does "
             "not follow its input (disconnected or stuck, or the wrong column?) cannot be "
             "diagnosed"
+        )
+    gain = static_gain(u, y, ts)
+    low, high = GAIN_RANGE
+    if not low <= gain <= high:
+        # the catalogue's gain is a calibration error of a few per cent; a thermocouple logged
+        # in mV was "partly explained" by a gain of -117 and a 3000 s pole
+        raise EstimationError(
+            f"diagnose: the output follows the input with a static gain of {gain:.3g}, "
+            f"implausible for a temperature sensor against its reference (expected "
+            f"{low:g}-{high:g}): input and output in different units or scales (e.g. degC "
+            "against mV), an inverted channel, or the wrong columns? Convert them first"
         )
     v = None if flow is None else np.asarray(flow, dtype=float)
     context = context_for(u, ts, v)

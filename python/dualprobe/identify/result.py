@@ -6,6 +6,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 from dualprobe.io import EstimationError
+from dualprobe.models.gain import GAIN_RANGE
 
 __all__ = [
     "GAIN_RANGE",
@@ -137,10 +138,6 @@ class TfFit:
         }
 
 
-# Static gains a temperature sensor against a temperature reference can have: a thermocouple or
-# RTD reads its own temperature within a few per cent; far outside this the two columns are not
-# the same quantity (degC against V, K against degC through a scaled channel, ...).
-GAIN_RANGE = (0.5, 2.0)
 
 
 def check_gain(fit: TfFit, bounds: tuple[float, float] = GAIN_RANGE) -> None:
