@@ -25,17 +25,20 @@ def write_mdf(
     path: Path,
     groups: list[tuple[np.ndarray, dict[str, np.ndarray]]],
     units: dict[str, str] | None = None,
+    invalid: dict[str, np.ndarray] | None = None,
 ) -> Path:
-    """One channel group per (time stamps, {channel: samples}) entry."""
+    """One channel group per (time stamps, {channel: samples}) entry; ``invalid``: a channel's
+    invalidation bits (True: the sample is invalid)."""
     from asammdf import MDF, Signal
 
     units = units or {}
+    invalid = invalid or {}
     mdf = MDF(version="4.10")
     try:
         for stamps, channels in groups:
             signals = [
                 Signal(np.asarray(v, dtype=float), np.asarray(stamps, dtype=float), name=name,
-                       unit=units.get(name, ""))
+                       unit=units.get(name, ""), invalidation_bits=invalid.get(name))
                 for name, v in channels.items()
             ]
             mdf.append(signals)

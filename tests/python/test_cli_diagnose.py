@@ -326,7 +326,8 @@ def test_missing_readings_are_dropped_rows(
         out = capsys.readouterr().out
         assert status == 0, out
         docs.append(json.loads(json_path.read_text()))
-    assert docs[1]["notes"][0].startswith("missing readings (empty or NaN cells): 'T_m' 6")
+    assert docs[1]["notes"][0].startswith(
+        "missing readings (empty cells, NaN or invalid samples): 'T_m' 6")
     # the lines named differ (the lossy file has no line for a lost row), the counts do not
     assert docs[1]["notes"][1].startswith("dropped rows: 6 intervals")
     assert docs[0]["notes"][0].startswith("dropped rows: 6 intervals")

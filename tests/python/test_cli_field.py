@@ -206,7 +206,8 @@ def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
         status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path)])
         out = capsys.readouterr().out
         assert status == 0, out
-        assert ("note: missing readings (empty or NaN cells)" in out) == (path == lost)
+        noted = "note: missing readings (empty cells, NaN or invalid samples)" in out
+        assert noted == (path == lost)
         assert "warning" not in out, out
         t, columns, _ = load_columns(out_path, ["T_g_hat"])
         assert t is not None

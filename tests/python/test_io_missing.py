@@ -138,3 +138,37 @@ def test_parquet_nulls_are_missing_readings_as_in_csv(tmp_path: Path) -> None:
     for name in ("T_m1", "T_m2"):
         assert np.allclose(from_parquet.columns[name], from_csv.columns[name], rtol=0, atol=1e-12)
     assert any("'T_m2' 3 (first at row 31)" in n for n in from_parquet.notes)
+
+
+def test_invalid_mdf4_samples_are_missing_readings_in_step(tmp_path: Path) -> None:
+    """MDF4 invalidation bits: asammdf drops invalid samples by default, so T_m1 came back
+    with 3 samples fewer than T_m2 of the same group and the two were paired row by row, out
+    of step after row 10 (silently). Now invalid samples are missing readings: dropped and
+    bridged like any other, the channels in step whichever is the raster; an invalid sample
+    of a channel of another rate spoils the raster rows next to it, which are bridged too."""
+    from recordings import write_mdf
+
+    t = np.arange(300) * TS
+    x, y = signals(t)
+    bad = np.zeros(t.size, dtype=bool)
+    bad[[10, 11, 150]] = True
+    slow = np.arange(150) * 2 * TS  # another group at half the rate
+    flow_bad = np.zeros(slow.size, dtype=bool)
+    flow_bad[40] = True
+    flow = 10.0 + np.sin(0.1 * slow)
+    path = write_mdf(tmp_path / "inv.mf4",
+                     [(t, {"T_m1": np.where(bad, -999.0, x), "T_m2": y}),
+                      (slow, {"mdot": np.where(flow_bad, -1.0, flow)})],
+                     invalid={"T_m1": bad, "mdot": flow_bad})
+    loaded = [load_recording(path, columns) for columns in
+              (["T_m1", "T_m2", "mdot"], ["T_m2", "T_m1", "mdot"])]
+    for rec in loaded:
+        assert rec.t.size == 299  # the last raster row is past the slow group's span
+        tx, ty = signals(rec.t)
+        # up to 3 rows bridged: 0.4^2 * 0.237 / 8 on the sensors
+        assert np.max(np.abs(rec.columns["T_m1"] - tx)) <= 0.4**2 * 0.237 / 8 + 1e-12
+        assert np.max(np.abs(rec.columns["T_m2"] - ty)) <= 0.4**2 * 0.237 / 8 + 1e-12
+        assert np.all(rec.columns["mdot"] > 8.0)  # the -1 never leaks in
+        assert any("'T_m1' 3 (first at sample 10 of group 0)" in n for n in rec.notes)
+        assert any("'mdot' 3" in n for n in rec.notes), rec.notes
+    assert np.array_equal(loaded[0].columns["T_m1"], loaded[1].columns["T_m1"])

@@ -12,6 +12,8 @@ Rules:
   span of any interpolated channel are trimmed (never extrapolated), with a note saying how many;
   a gap in an interpolated channel (an interval over 1.5 of its median) is refused, since
   nothing can be interpolated across it.
+* **Invalid samples** (MDF4's invalidation bits) are missing readings, NaN: their rows are
+  dropped and bridged as any missing reading (:mod:`dualprobe.io.missing`).
 """
 
 from __future__ import annotations
@@ -95,8 +97,14 @@ def _place(
 
 
 def _signal(mdf: Any, source: str, name: str, place: tuple[int, int]) -> tuple[Any, Any]:
+    """(samples, stamps) of a channel: every record of its group, an invalid sample as NaN.
+
+    asammdf drops the samples whose invalidation bit is set by default, so two channels of one
+    group came back with different lengths and were paired row by row, out of step after the
+    first invalid sample. Kept and marked NaN, they are missing readings
+    (:mod:`dualprobe.io.missing`)."""
     try:
-        signal = mdf.get(name, group=place[0], index=place[1])
+        signal = mdf.get(name, group=place[0], index=place[1], ignore_invalidation_bits=True)
     except Exception as exc:
         raise InputError(f"{source}: channel {name!r}: cannot be read ({_one_line(exc)})") from None
     samples = np.asarray(signal.samples)
@@ -105,7 +113,11 @@ def _signal(mdf: Any, source: str, name: str, place: tuple[int, int]) -> tuple[A
     stamps = np.asarray(signal.timestamps, dtype=np.float64)
     if stamps.size != samples.size or stamps.size == 0:
         raise InputError(f"{source}: channel {name!r} has no samples")
-    return samples.astype(np.float64), stamps
+    samples = samples.astype(np.float64)
+    invalid = getattr(signal, "invalidation_bits", None)
+    if invalid is not None:
+        samples[np.asarray(invalid, dtype=bool)] = np.nan
+    return samples, stamps
 
 
 def _check_clock(source: str, name: str, group: int, stamps: np.ndarray) -> None:
@@ -197,6 +209,12 @@ def read_mdf(
         )
     columns: dict[str, np.ndarray] = {}
     for wanted, (samples, stamps, where) in read.items():
+        if where == group and samples.size != t.size:  # never pair rows out of step
+            raise InputError(
+                f"{source}: channel {names[wanted]!r} has {samples.size} samples, its group "
+                f"{group}'s time base {t.size}"
+            )
+        # a NaN (invalid sample) of another group spoils the raster rows next to it: missing
         columns[wanted] = samples[rows] if where == group else np.interp(t[rows], stamps, samples)
     del raster_samples
     return Table(

@@ -103,8 +103,8 @@ def drop_missing(
     ends = inner.start + (size - inner.stop)
     trimmed = f", {ends} of them at the ends (trimmed)" if ends else ""
     note = (
-        f"missing readings (empty or NaN cells): {', '.join(parts)}; their {dropped} "
-        f"row{'s' if dropped > 1 else ''} of {size} treated as dropped rows{trimmed}"
+        f"missing readings (empty cells, NaN or invalid samples): {', '.join(parts)}; their "
+        f"{dropped} row{'s' if dropped > 1 else ''} of {size} treated as dropped rows{trimmed}"
     )
     return Dropped(complete, note)
 
