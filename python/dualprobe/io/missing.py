@@ -79,10 +79,16 @@ def drop_missing(
             f"non-finite value nan){why}"
         )
     size = next(iter(columns.values())).size
+    empty = [name for name in columns if counts[name] == size]
+    if empty:
+        raise InputError(f"{source}: column {named(empty[0])} has no reading (every cell empty, "
+                         "NaN or invalid)")
     lost = np.logical_or.reduce(list(missing.values()))
     complete = np.flatnonzero(~lost)
     if complete.size == 0:
-        raise InputError(f"{source}: no row has a reading in every column ({_listed(names)})")
+        listed = ", ".join(named(name) for name in columns if counts[name])
+        raise InputError(f"{source}: no row has a reading in every column (readings missing in "
+                         f"{listed})")
     inner = slice(int(complete[0]), int(complete[-1]) + 1)
     span = inner.stop - inner.start
     for name, mask in missing.items():
@@ -107,7 +113,3 @@ def drop_missing(
         f"{dropped} row{'s' if dropped > 1 else ''} of {size} treated as dropped rows{trimmed}"
     )
     return Dropped(complete, note)
-
-
-def _listed(names: Mapping[str, str]) -> str:
-    return ", ".join(repr(name) for name in names.values())

@@ -10,9 +10,10 @@ named so without the magic is refused); anything else is read as CSV text.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,6 +29,7 @@ from dualprobe.io.timebase import (
     BRIDGE_ROWS,
     TIME_UNITS,
     Gap,
+    TimeBase,
     analyse_time,
     resample_segments,
     stamp_resolution,
@@ -74,10 +76,12 @@ class Recording:
             return
         longest = max(self.segments, key=lambda s: s.stop - s.start)
         more = f" and {len(self.gaps) - 1} more" if len(self.gaps) > 1 else ""
+        # the segment by its times: its row numbers are not the file's once rows were dropped
+        first, last = float(self.t[longest.start]), float(self.t[longest.stop - 1])
         raise InputError(
             f"{self.source}: {self.gaps[0]}{more}; {what} needs a record without gaps: cut "
-            f"the file at the gap (longest segment: rows {longest.start + 1}-{longest.stop}, "
-            f"{(longest.stop - longest.start - 1) * self.sample_interval:.6g} s)"
+            f"the file at the gap (longest segment: t = {first:.6g}-{last:.6g} s, "
+            f"{last - first:.6g} s)"
         )
 
 
@@ -144,6 +148,19 @@ def _check_finite(table: Table, columns: dict[str, np.ndarray]) -> None:
                 f"{table.source}: {table.row_label(first)}, column {table.names.get(name, name)!r}"
                 f": non-finite value {float(values[first])!r}"
             )
+
+
+def _name_missing(base: TimeBase, rows: np.ndarray, label: Callable[[int], str]) -> TimeBase:
+    """Say which gaps are rows of the file without a reading in every column (their stamps
+    are there: it is the readings that are missing)."""
+    after = {label(int(k)): int(rows[k] - rows[k - 1] - 1) for k in range(1, rows.size)
+             if rows[k] - rows[k - 1] > 1}
+    gaps = tuple(
+        dataclasses.replace(gap, cause=f"{after[gap.label]} rows without a reading in every "
+                            "column") if gap.label in after else gap
+        for gap in base.gaps
+    )
+    return dataclasses.replace(base, gaps=gaps)
 
 
 def load_recording(
@@ -254,6 +271,8 @@ def load_recording(
         resolution=lambda: resolution() * factor,
         strict=strict,
     )
+    if rows is not None and base.gaps:
+        base = _name_missing(base, rows, label)
     segments = tuple(slice(start, stop) for start, stop in base.segments)
     stamped = size
     if not base.uniform:

@@ -134,11 +134,13 @@ class Gap:
     time: float  # time of the row before the gap, s
     duration: float  # the interval, s
     intervals: float  # the interval in median intervals
+    cause: str = ""  # what made it, when known ("5 rows without a reading in every column")
 
     def __str__(self) -> str:
+        cause = f": {self.cause}" if self.cause else ""
         return (
             f"{self.label} (t = {self.time:.6g} s): gap of {self.duration:.4g} s "
-            f"({self.intervals:.3g} intervals)"
+            f"({self.intervals:.3g} intervals{cause})"
         )
 
 
