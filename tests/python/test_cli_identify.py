@@ -98,3 +98,22 @@ def test_constant_input_exits_3(tmp_path: Path, capsys: pytest.CaptureFixture[st
     path.write_text("t,ref,pt100\n" + "".join(f"{k},20,{20 + k}\n" for k in range(30)))
     assert main(["identify", str(path), "--input", "ref", "--output", "pt100"]) == 3
     assert "constant" in capsys.readouterr().err
+
+
+def test_first_order_on_a_second_order_sensor_is_named(
+        recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Order 1 fits 99.1 % and used to be printed as such; it leaves 5.9 times the noise floor
+    (measured), a warning now says so and what to try. Order 2 leaves 1.02 times."""
+    checks = []
+    for order in ("1", "2"):
+        target = tmp_path / f"o{order}.json"
+        status = main(["identify", str(recording), "--input", "ref", "--output", "pt100",
+                       "--order", order, "--json", str(target)])
+        out = capsys.readouterr().out
+        assert status == 0
+        checks.append((out, json.loads(target.read_text())["model_check"]))
+    (out1, check1), (out2, check2) = checks
+    assert not check1["adequate"] and check1["misfit_to_noise"] > 4.0
+    assert "warning: the model does not explain the data" in out1 and "--order 2" in out1
+    assert check2["adequate"] and check2["misfit_to_noise"] < 1.3
+    assert "model check: the model explains the data" in out2 and "warning" not in out2
