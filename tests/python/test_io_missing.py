@@ -86,8 +86,10 @@ def test_a_long_run_splits_the_record_and_characterise_is_told_where(tmp_path: P
     # the gap says it is missing readings, the segment is named by its times (its row numbers
     # are not the file's once rows were dropped)
     assert ("line 108 (t = 9.9 s): gap of 0.7 s (7 intervals: 6 rows without a reading in "
-            "every column); characterise needs a record without gaps: cut the file at the gap "
-            "(longest segment: t = 10.6-29.9 s, 19.3 s)") in str(info.value)
+            "every column); characterise needs a record without gaps: give --window 10.6:29.9 "
+            "(the longest segment, 19.3 s) or cut the file at the gap") in str(info.value)
+    window = load_recording(tmp_path / "l.csv", ["T_m1", "T_m2"], window=(10.6, 29.9))
+    assert window.contiguous and window.t.size == 194 and window.t[0] == pytest.approx(10.6)
 
 
 def test_a_channel_of_another_rate_is_refused_not_thinned(tmp_path: Path) -> None:
@@ -180,3 +182,26 @@ def test_invalid_mdf4_samples_are_missing_readings_in_step(tmp_path: Path) -> No
         assert any("'T_m1' 3 (first at sample 10 of group 0)" in n for n in rec.notes)
         assert any("'mdot' 3" in n for n in rec.notes), rec.notes
     assert np.array_equal(loaded[0].columns["T_m1"], loaded[1].columns["T_m1"])
+
+
+def test_a_window_reads_only_its_rows(tmp_path: Path) -> None:
+    """--window START:END: what lies outside (a gap, a missing reading, a channel that starts
+    late) does not matter; a gap inside still splits; rows are named as the file names them."""
+    t = np.arange(400) * TS
+    x, y = signals(t)
+    path = write(tmp_path / "w.csv", t, x, y, {"T_m2": [0, 1, *range(300, 310)], "T_m1": [150]})
+    whole = load_recording(path, ["T_m1", "T_m2"])
+    assert len(whole.gaps) == 1  # the 10 missing rows at 30 s
+    rec = load_recording(path, ["T_m1", "T_m2"], window=(5.0, 25.0))
+    assert rec.contiguous and rec.t[0] == pytest.approx(5.0) and rec.t[-1] == pytest.approx(25.0)
+    assert rec.notes[0] == "window t = 5-25 s: line 52 to line 252, 201 of 400 rows"
+    assert "'T_m1' 1 (first at line 152)" in rec.notes[1]  # named as the file names it
+    open_end = load_recording(path, ["T_m1", "T_m2"], window=(None, 25.0))
+    assert open_end.t[0] == pytest.approx(0.2)  # the late start is trimmed as before
+    inside = load_recording(path, ["T_m1", "T_m2"], window=(20.0, None))
+    assert len(inside.gaps) == 1
+    bare = write(tmp_path / "n.csv", None, x, y, {})
+    rows = load_recording(bare, ["T_m1", "T_m2"], time=None, sample_interval=TS, window=(1, 2))
+    assert rows.t.size == 11 and rows.t[0] == pytest.approx(1.0)
+    assert "--window 50:60 holds 0 rows (need at least 10); the record spans t = 0-39.9 s" in (
+        refusal(path, window=(50.0, 60.0)))

@@ -86,6 +86,8 @@ def options_of(args: argparse.Namespace) -> dict[str, Any]:
     }
     if args.flow is not None:
         options["flow"] = args.flow
+    if args.window is not None:
+        options["window"] = args.window
     return options
 
 

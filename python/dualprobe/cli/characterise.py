@@ -194,6 +194,7 @@ def run(args: argparse.Namespace) -> int:
         time_unit=args.time_unit,
         flow=args.flow,
         track=args.track,
+        window=args.window,
     )
     print_notes(result.notes)
     if args.json is not None:

@@ -98,6 +98,29 @@ def positive_float(text: str) -> float:
     return value
 
 
+def time_window(text: str) -> tuple[float | None, float | None]:
+    """argparse type: ``START:END`` in seconds, either side may be empty (``100:``, ``:600``)."""
+    start, sep, end = text.partition(":")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected START:END in seconds, got {text!r}")
+    bounds: list[float | None] = []
+    for part in (start, end):
+        if not part.strip():
+            bounds.append(None)
+            continue
+        try:
+            value = float(part)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a number: {part!r} in {text!r}") from None
+        if not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"must be finite, got {part!r} in {text!r}")
+        bounds.append(value)
+    low, high = bounds
+    if low is not None and high is not None and not low < high:
+        raise argparse.ArgumentTypeError(f"the start must come before the end, got {text!r}")
+    return low, high
+
+
 def check_writable(option: str, path: Path) -> None:
     """Refuse an output file path before any work is done (exit 2)."""
     if path.is_dir():
@@ -122,6 +145,15 @@ def add_time_arguments(parser: Any, *, unit: bool = False) -> None:
         default=None,
         metavar="TS",
         help="sample interval in seconds when there is no time column",
+    )
+    parser.add_argument(
+        "--window",
+        type=time_window,
+        default=None,
+        metavar="START:END",
+        help="use only the rows from START to END seconds of the time column (either may be "
+        "left out: 600: or :1200); a gap, a missing reading or jitter outside it does not "
+        "matter",
     )
     if unit:
         parser.add_argument(

@@ -120,6 +120,7 @@ def run(args: argparse.Namespace) -> int:
         time_unit=args.time_unit,
         flow_column=args.flow,
         noise_std=args.noise_std,
+        window=args.window,
     )
     if args.json is not None:
         write_json(result, args.json)

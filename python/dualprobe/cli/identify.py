@@ -118,6 +118,7 @@ def run(args: argparse.Namespace) -> int:
         time_unit=args.time_unit,
         sample_interval=args.sample_interval,
         raster=args.output,
+        window=args.window,
     )
     y = recording.columns[args.output]
     document: dict[str, Any] = {"file": str(args.data), "output": args.output}

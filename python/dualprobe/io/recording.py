@@ -79,9 +79,9 @@ class Recording:
         # the segment by its times: its row numbers are not the file's once rows were dropped
         first, last = float(self.t[longest.start]), float(self.t[longest.stop - 1])
         raise InputError(
-            f"{self.source}: {self.gaps[0]}{more}; {what} needs a record without gaps: cut "
-            f"the file at the gap (longest segment: t = {first:.6g}-{last:.6g} s, "
-            f"{last - first:.6g} s)"
+            f"{self.source}: {self.gaps[0]}{more}; {what} needs a record without gaps: give "
+            f"--window {first:.10g}:{last:.10g} (the longest segment, {last - first:.6g} s) or "
+            "cut the file at the gap"
         )
 
 
@@ -150,6 +150,31 @@ def _check_finite(table: Table, columns: dict[str, np.ndarray]) -> None:
             )
 
 
+def _window_rows(source: str, window: tuple[float | None, float | None], seconds: np.ndarray,
+                 min_rows: int) -> np.ndarray:
+    """The file rows from the first stamp at or after the window's start to the last at or
+    before its end (a stamp that is NaN inside them stays: a missing reading)."""
+    start, end = window
+    # a bound written from a stamp (29.9) must take that stamp (29.900000000000002)
+    low = -math.inf if start is None else start - 1e-9 * max(1.0, abs(start))
+    high = math.inf if end is None else end + 1e-9 * max(1.0, abs(end))
+    if start is not None and end is not None and not start < end:
+        raise InputError(f"--window {start:g}:{end:g}: the start must come before the end")
+    inside = np.flatnonzero((seconds >= low) & (seconds <= high))
+    if inside.size < min_rows:
+        finite = seconds[np.isfinite(seconds)]
+        span = f"t = {finite[0]:.6g}-{finite[-1]:.6g} s" if finite.size else "no time stamps"
+        raise InputError(
+            f"{source}: --window {_bound(start)}:{_bound(end)} holds {inside.size} rows (need "
+            f"at least {min_rows}); the record spans {span}"
+        )
+    return np.arange(int(inside[0]), int(inside[-1]) + 1)
+
+
+def _bound(value: float | None) -> str:
+    return "" if value is None else f"{value:g}"
+
+
 def _name_missing(base: TimeBase, rows: np.ndarray, label: Callable[[int], str]) -> TimeBase:
     """Say which gaps are rows of the file without a reading in every column (their stamps
     are there: it is the readings that are missing)."""
@@ -174,6 +199,7 @@ def load_recording(
     raster: str | None = None,
     strict: bool = False,
     required: Sequence[str] = (),
+    window: tuple[float | None, float | None] | None = None,
 ) -> Recording:
     """Load columns of a recording in any supported format (CSV, Parquet, MDF4).
 
@@ -196,6 +222,9 @@ def load_recording(
     required:
         Columns in which a missing reading (empty cell, NaN, null) is refused rather than
         dropped with its row (:mod:`dualprobe.io.missing`).
+    window:
+        (start, end) in seconds of the time column (None: the record's own): only the rows
+        inside are read; a gap, a missing reading or jitter outside it does not matter.
 
     Raises
     ------
@@ -222,42 +251,49 @@ def load_recording(
     _check_finite(table, checked)
     if stamps is None and sample_interval is None:
         raise InputError(f"{path}: no time column; give the sample interval")
-    names = {**table.names, **({time or "time": table.time_name} if table.time_name else {})}
-    dropped = drop_missing(str(path), checked, names, table.row_label, strict=strict,
-                           required=required)
-    resolution = table.resolution
-    rows: np.ndarray | None = None  # the file's rows kept, when some were dropped
+    ts_given = float(sample_interval or 1.0)
+    factor, unit_note = (1.0, None) if table.time is None else _time_unit(table, time_unit)
+    if unit_note:
+        notes.append(unit_note)
+    rows: np.ndarray | None = None  # the file's rows kept, when not all of them
 
     def label(row: int) -> str:
         return table.row_label(row if rows is None else int(rows[row]))
 
+    if window is not None:
+        seconds = np.arange(size) * ts_given if stamps is None else stamps * factor
+        rows = _window_rows(str(path), window, seconds, min_rows)
+        notes.append(
+            f"window t = {seconds[rows[0]]:.6g}-{seconds[rows[-1]]:.6g} s: {label(0)} to "
+            f"{label(rows.size - 1)}, {rows.size} of {size} rows"
+        )
+        data = {name: values[rows] for name, values in data.items()}
+        stamps = None if stamps is None else stamps[rows]
+        checked = data if stamps is None else {**data, time or "time": stamps}
+    names = {**table.names, **({time or "time": table.time_name} if table.time_name else {})}
+    dropped = drop_missing(str(path), checked, names, label, strict=strict, required=required)
     if dropped is not None:
-        rows = dropped.rows
-        if rows.size < min_rows:
+        kept = dropped.rows
+        if kept.size < min_rows:
             raise InputError(
-                f"{path}: too few rows with a reading in every column ({rows.size}; need at "
+                f"{path}: too few rows with a reading in every column ({kept.size}; need at "
                 f"least {min_rows})"
             )
         notes.append(dropped.note)
-        data = {name: values[rows] for name, values in data.items()}
-        if stamps is None:
-            # rows lost without a time column: the row numbers are the clock
-            stamps = rows.astype(np.float64) * float(sample_interval or 1.0)
-        else:
-            stamps = kept = stamps[rows]
-            if not table.fixed_unit:  # the printed resolution of the stamps left (no NaN)
-                resolution = lambda: stamp_resolution(kept)  # noqa: E731
-    elif stamps is None:
-        t = np.arange(size, dtype=np.float64) * float(sample_interval or 1.0)
-        whole = (slice(0, size),)
-        return Recording(t, data, float(sample_interval or 1.0), whole, (), (), str(path), kind)
-
-    if table.time is None:
-        factor, unit_note = 1.0, None
-    else:
-        factor, unit_note = _time_unit(table, time_unit)
-    if unit_note:
-        notes.append(unit_note)
+        data = {name: values[kept] for name, values in data.items()}
+        stamps = None if stamps is None else stamps[kept]
+        rows = kept if rows is None else rows[kept]
+    if stamps is None:
+        if rows is None:
+            t = np.arange(size, dtype=np.float64) * ts_given
+            return Recording(t, data, ts_given, (slice(0, size),), (), tuple(notes), str(path),
+                             kind)
+        # rows lost or cut without a time column: the row numbers are the clock
+        stamps = rows.astype(np.float64) * ts_given
+    resolution = table.resolution
+    if rows is not None and not table.fixed_unit:  # the printed resolution of the rows kept
+        kept_stamps = stamps
+        resolution = lambda: stamp_resolution(kept_stamps)  # noqa: E731
     t = stamps * factor if factor != 1.0 else np.asarray(stamps, dtype=np.float64)
     time_name = table.time_name
 

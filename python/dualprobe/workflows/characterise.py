@@ -334,6 +334,7 @@ def load_pair(
     time_unit: str | None = None,
     sample_interval: float | None = None,
     required: Sequence[str] = (),
+    window: tuple[float | None, float | None] | None = None,
 ) -> Recording:
     """Load the columns of a recording in any format (CSV, Parquet, MDF4) for characterise:
     jitter resampled, units converted, rows with a missing reading dropped and bridged (notes
@@ -343,7 +344,7 @@ def load_pair(
         raise InputError("without a time column the sample interval must be given")
     recording = load_recording(
         path, columns, time=time or None, time_unit=time_unit, sample_interval=sample_interval,
-        required=required,
+        required=required, window=window,
     )
     recording.require_contiguous("characterise")
     return recording
@@ -366,12 +367,14 @@ def characterise_file(
     flow: str | None = None,
     track: str = "auto",
     uncertainty: bool = True,
+    window: tuple[float | None, float | None] | None = None,
 ) -> Characterisation:
     """Load a recording (CSV, Parquet or MDF4) and characterise it (see
     :func:`characterise_arrays`).
 
     Without a time column (``time=None`` or ``""``) the sample interval must be given;
-    ``time_unit`` (s, ms, us, min) overrides the unit read from the time column's header.
+    ``time_unit`` (s, ms, us, min) overrides the unit read from the time column's header;
+    ``window`` (start, end) in seconds reads only those rows.
     """
     if sensor1 == sensor2:
         raise InputError(f"--sensor1 and --sensor2 name the same column {sensor1!r}")
@@ -381,7 +384,7 @@ def characterise_file(
     # the flow and the reference are not readings to bridge: a missing value there is refused
     recording = load_pair(
         path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval,
-        required=[name for name in (reference, flow) if name],
+        required=[name for name in (reference, flow) if name], window=window,
     )
     columns = recording.columns
     result = characterise_arrays(
