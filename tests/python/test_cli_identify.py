@@ -117,3 +117,24 @@ def test_first_order_on_a_second_order_sensor_is_named(
     assert "warning: the model does not explain the data" in out1 and "--order 2" in out1
     assert check2["adequate"] and check2["misfit_to_noise"] < 1.3
     assert "model check: the model explains the data" in out2 and "warning" not in out2
+
+
+def test_a_clean_step_input_is_identified(tmp_path: Path, capsys: pytest.CaptureFixture[str]
+                                          ) -> None:
+    """A noise-free step reference (20 -> 80 -> 20 K) was refused as "no excitation: the input
+    spans 60, within what its noise (17.3 std) spans alone": its step was taken for an ADC's.
+    Now a 4 s sensor comes back within 0.1 % (0.05 K noise on the output)."""
+    t = np.arange(600) * 0.1
+    u = np.where((t > 5.0) & (t < 35.0), 80.0, 20.0)
+    y = sim.simulate_sensor(sim.GasProfile.from_samples(t, u, kind="hold"),
+                            sim.SensorModel((4.0,)), t)
+    y = y + 0.05 * np.random.default_rng(1).standard_normal(t.size)
+    path, target = tmp_path / "clean.csv", tmp_path / "clean.json"
+    np.savetxt(path, np.column_stack([t, u, y]), delimiter=",", header="t,ref,y", comments="")
+    status = main(["identify", str(path), "--input", "ref", "--output", "y", "--hold", "zoh",
+                   "--json", str(target)])
+    assert status == 0, capsys.readouterr().err
+    document = json.loads(target.read_text())
+    assert document["taus"][0] == pytest.approx(4.0, rel=1e-3)
+    assert document["input_noise_std"] == 0.0
+

@@ -56,6 +56,22 @@ def test_noise_of_quantised_data_that_move_on_most_rows_is_the_rounding(order: i
     assert estimate_noise_std(np.arange(200) * 0.3, order) == pytest.approx(0.0, abs=1e-12)
 
 
+@pytest.mark.parametrize("order", ORDERS)
+def test_a_clean_step_profile_has_no_noise(order: int) -> None:
+    """A noise-free reference switched between a few levels (a test generator's input): its
+    smallest step is a step, not an ADC's (a 60 K step gave 17 K of "noise" and identify
+    refused the record as unexcited), and its few non-zero differences are the steps (the RMS
+    of them gave 2 K). Noise 0. Through a 0.1 K ADC with noise the floor stays."""
+    t = np.arange(600) * 0.1
+    steps = np.where((t > 5.0) & (t < 35.0), 80.0, 20.0)
+    staircase = 20.0 + 10.0 * np.floor(t / 12.0)  # five levels
+    for clean in (steps, staircase):
+        assert estimate_noise_std(clean, order) == 0.0
+    noisy = 0.1 * np.round((steps + 0.02 * np.random.default_rng(7).standard_normal(t.size))
+                           / 0.1)
+    assert estimate_noise_std(noisy, order) >= 0.1 / math.sqrt(12.0) * (1 - 1e-9)
+
+
 def test_noise_of_white_noise_on_a_smooth_signal() -> None:
     rng = np.random.default_rng(5)
     t = np.arange(20_000) * 0.1

@@ -44,7 +44,8 @@ def estimate_noise_std(x: np.ndarray, order: int) -> float:
     are far below the noise; the few beside a kink (an off-grid gas step) are outliers the
     median ignores. If more than half of the differences are equal (coarse ADC quantisation,
     noise-free data: the MAD is 0) the RMS of the differences is used instead (0 for an exactly
-    constant or polynomial signal).
+    constant or polynomial signal), unless under 5 % of them differ from zero: noise-free data
+    whose only differences are its kinks and steps, noise 0.
 
     Quantisation floor: when most of the signal's first differences are exactly zero (an ADC
     of coarse resolution on a slow signal, or a logger that holds its last value), the samples
@@ -70,9 +71,23 @@ def estimate_noise_std(x: np.ndarray, order: int) -> float:
     mad = float(np.median(np.abs(d - np.median(d))))
     if mad > 0.0:
         estimate = MAD_TO_STD * mad / gain
+    elif np.count_nonzero(d) < _KINK_SHARE * d.size:
+        # noise-free data: the few differences that are not zero sit at kinks and steps (a
+        # clean 60 K step gave 2 K of "noise"); a quantised record has its floor below
+        estimate = 0.0
     else:
         estimate = float(np.sqrt(np.mean(d * d))) / gain
     return max(estimate, quantisation_floor(arr))
+
+
+# Below this share of non-zero differences (with most of them exactly zero) a record is
+# noise-free with a few kinks or steps, not noisy.
+_KINK_SHARE = 0.05
+# A converter's step is small against what the signal spans: a record spanning fewer steps of
+# its smallest change is a clean step profile (a reference switched between a few levels, whose
+# "smallest step" is the step itself: a 60 K step was taken for 17 K of noise and identify
+# refused the record as unexcited). 8 steps keep a +-1 K record through a 0.1 K ADC quantised.
+_MIN_LEVELS = 8
 
 
 def quantisation_floor(x: np.ndarray) -> float:
@@ -80,8 +95,10 @@ def quantisation_floor(x: np.ndarray) -> float:
     held data), or when the readings lie on the lattice of ``q`` and their steps take a few
     lattice values (quantised data that move on most rows: a plunge through 0.1 K steps at
     several steps a row left second differences of float rounding only, and a noise level of
-    3e-14 K); ``q`` the smallest non-zero step. Else 0: a smooth signal can lie on a lattice
-    too (k^2 h^2), but its steps are all different; a straight line has one step, no rounding.
+    3e-14 K); ``q`` the smallest non-zero step, and the record spanning at least
+    ``_MIN_LEVELS`` of it. Else 0: a smooth signal can lie on a lattice too (k^2 h^2), but its
+    steps are all different; a straight line has one step, no rounding; a clean step profile
+    spans a few of its steps.
     """
     arr = np.asarray(x, dtype=float)
     steps = np.abs(np.diff(arr))
@@ -89,6 +106,8 @@ def quantisation_floor(x: np.ndarray) -> float:
     if steps.size == 0 or moving.size == 0:
         return 0.0
     q = float(np.min(moving))
+    if float(np.ptp(arr)) < _MIN_LEVELS * q:
+        return 0.0  # a few big steps: a clean step profile, not an ADC
     if 2 * moving.size < steps.size:
         return q / math.sqrt(12.0)
     lattice = (arr - arr[0]) / q
