@@ -64,6 +64,8 @@ BAD_INPUTS = {
         "'T_m2'",
     ),
     "non-numeric": (lambda d: edit_line(write_pair(d / "n.csv"), 7, "0.6,warm,20,21"), "line 8"),
+    "nan": (lambda d: edit_line(write_pair(d / "f.csv"), 9, "0.8,20,nan,21"), "non-finite"),
+    "empty cell": (lambda d: edit_line(write_pair(d / "c.csv"), 9, "0.8,20,,21"), "empty cell"),
     "inf": (lambda d: edit_line(write_pair(d / "i.csv"), 9, "0.8,inf,20,21"), "non-finite"),
     "time decreasing": (
         lambda d: edit_line(write_pair(d / "d.csv"), 4, "0.1,20,20,21"),

@@ -306,8 +306,9 @@ def test_dropped_rows_are_bridged_not_refused(
 def test_missing_readings_are_dropped_rows(
     recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Empty cells in the sensor's column at 6 places are the same 6 rows lost: the same
-    bridged record, so the same dead time to the last digit, and a note for each."""
+    """Empty cells in the sensor's column at 6 places, with --missing bridge, are the same 6
+    rows lost: the same bridged record, so the same dead time to the last digit, and a note
+    for each."""
     data = np.genfromtxt(recording, delimiter=",", names=True)
     rows = np.linspace(200, data.size - 200, 6).astype(int)
     keep = np.ones(data.size, dtype=bool)
@@ -322,7 +323,7 @@ def test_missing_readings_are_dropped_rows(
     for path in (lossy, empty):
         json_path = tmp_path / f"{path.stem}.json"
         status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m",
-                       "--json", str(json_path)])
+                       "--json", str(json_path), "--missing", "bridge"])
         out = capsys.readouterr().out
         assert status == 0, out
         docs.append(json.loads(json_path.read_text()))

@@ -176,8 +176,9 @@ def test_jittering_stamps_and_dropped_rows_are_resampled_not_refused(
 def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A logger that lost single frames of one channel (empty cells at 40 places, a `nan` at
-    30 more, the second sensor starting 5 rows late): once refused at the first empty cell,
-    now those rows are dropped and bridged like lost rows, said on a note line, and the gas is
+    30 more, the second sensor starting 5 rows late): refused by default at the first empty
+    cell, saying how to bridge; with --missing bridge those rows are dropped and bridged like
+    lost rows, said on a note line, and the gas is
     as good as from the intact file (bridging 1-3 rows errs by hundredths of a kelvin against
     a gas error of about 0.9 K, measured 0.88926 K against 0.88925 K; the two runs share the
     noise draw, so 5 % is room for the interpolation alone). A missing flow value is still a
@@ -200,10 +201,14 @@ def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
         cells[2] = ""
         lines[k + 1] = ",".join(cells)
     lost.write_text("\n".join(lines) + "\n")
+    status = main(["characterise", str(lost), "--flow", "mdot"])
+    err = capsys.readouterr().err
+    assert status == 2 and "give --missing bridge" in err  # the default refuses, naming it
     errors = []
     for path in (intact, lost):
         out_path = tmp_path / f"out_{path.name}"
-        status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path)])
+        status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path),
+                       "--missing", "bridge"])
         out = capsys.readouterr().out
         assert status == 0, out
         noted = "note: missing readings (empty cells, NaN or invalid samples)" in out
@@ -218,7 +223,7 @@ def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
     lines[300] = ",".join([*lines[300].split(",")[:3], ""])
     lost.write_text("\n".join(lines) + "\n")
     capsys.readouterr()
-    status = main(["characterise", str(lost), "--flow", "mdot"])
+    status = main(["characterise", str(lost), "--flow", "mdot", "--missing", "bridge"])
     captured = capsys.readouterr()
     assert status == 2 and captured.out == ""
     assert captured.err.strip().count("\n") == 0

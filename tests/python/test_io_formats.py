@@ -208,8 +208,13 @@ def test_parquet_errors(tmp_path: Path) -> None:
     path = write_parquet(tmp_path / "p.parquet", {"t": t, "T_m1": t})
     text = error_of(path, ["T_m1", "T_m2"])
     assert "missing column 'T_m2'; available: t, T_m1" in text
-    # a null reading is a missing one (a dropped row, bridged: tests/python/test_io_missing.py);
-    # a null time stamp of a timestamp column cannot be placed and is refused
+    # a null reading is a missing one: refused by default, naming it (bridged on request:
+    # tests/python/test_io_missing.py); a null time stamp of a timestamp column is refused
+    values = pa.array([*range(10), None, *range(11, 50)], type=pa.float64())
+    pq.write_table(pa.table({"t": t, "T_m1": values}), tmp_path / "null1.parquet")
+    assert "row 11, column 'T_m1': missing reading" in error_of(
+        tmp_path / "null1.parquet", ["T_m1"]
+    )
     stamps = pa.array([*(int(k) * 100_000 for k in range(10)), None,
                        *(int(k) * 100_000 for k in range(11, 50))],
                       type=pa.timestamp("us"))

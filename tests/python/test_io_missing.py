@@ -1,15 +1,17 @@
-"""Missing readings (empty cells, NaN, Parquet nulls): a row without a reading in every
-requested column is a dropped row; short runs are bridged, long ones split the record, rows at
-the ends trim it, a channel of another rate is refused, and the strict loader names the cell."""
+"""Missing readings (empty cells, NaN, Parquet nulls, MDF4 invalid samples): refused by
+default naming the cell (issue 2's bad input); with --missing bridge a row without a reading in
+every requested column is a dropped row: short runs are bridged, long ones split the record,
+rows at the ends trim it, a channel of another rate is refused."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from dualprobe.io import InputError, load_columns, load_recording
+from dualprobe.io import InputError, Recording, load_columns, load_recording
 
 TS = 0.1
 
@@ -35,9 +37,14 @@ def write(path: Path, t: np.ndarray | None, x: np.ndarray, y: np.ndarray,
     return path
 
 
+def bridged(path: Path, columns: list[str], **kwargs: Any) -> Recording:
+    """The loader with --missing bridge (the default refuses a missing reading)."""
+    return load_recording(path, columns, missing="bridge", **kwargs)
+
+
 def refusal(path: Path, **kwargs: object) -> str:
     with pytest.raises(InputError) as info:
-        load_recording(path, ["T_m1", "T_m2"], **kwargs)  # type: ignore[arg-type]
+        bridged(path, ["T_m1", "T_m2"], **kwargs)
     text = str(info.value)
     assert "\n" not in text
     return text
@@ -50,7 +57,7 @@ def test_missing_readings_are_dropped_rows_bridged_and_trimmed(tmp_path: Path, t
     # the second channel starts 2 rows late, the first stops a row early, and 1-3 readings
     # are lost inside (one of them in both channels at once)
     empty = {"T_m1": [50, 51, 52, 200, 399], "T_m2": [0, 1, 120, 200, 300, 301]}
-    rec = load_recording(write(tmp_path / "m.csv", t, x, y, empty, text), ["T_m1", "T_m2"])
+    rec = bridged(write(tmp_path / "m.csv", t, x, y, empty, text), ["T_m1", "T_m2"])
     assert rec.contiguous
     assert rec.t[0] == pytest.approx(0.2) and rec.t[-1] == pytest.approx(39.8)
     assert np.allclose(np.diff(rec.t), TS)
@@ -69,7 +76,7 @@ def test_without_a_time_column_the_row_numbers_are_the_clock(tmp_path: Path) -> 
     t = np.arange(100) * TS
     x, y = signals(t)
     path = write(tmp_path / "n.csv", None, x, y, {"T_m2": [40, 41]})
-    rec = load_recording(path, ["T_m1", "T_m2"], time=None, sample_interval=TS)
+    rec = bridged(path, ["T_m1", "T_m2"], time=None, sample_interval=TS)
     assert rec.t.size == 100 and rec.sample_interval == pytest.approx(TS)
     assert np.max(np.abs(rec.columns["T_m2"] - signals(rec.t)[1])) <= 0.3**2 * 0.237 / 8 + 1e-12
     assert any("'T_m2' 2 (first at line 42)" in n for n in rec.notes)
@@ -78,7 +85,7 @@ def test_without_a_time_column_the_row_numbers_are_the_clock(tmp_path: Path) -> 
 def test_a_long_run_splits_the_record_and_characterise_is_told_where(tmp_path: Path) -> None:
     t = np.arange(300) * TS
     x, y = signals(t)
-    rec = load_recording(write(tmp_path / "l.csv", t, x, y, {"T_m1": list(range(100, 106))}),
+    rec = bridged(write(tmp_path / "l.csv", t, x, y, {"T_m1": list(range(100, 106))}),
                          ["T_m1", "T_m2"])
     assert len(rec.gaps) == 1 and rec.gaps[0].label == "line 108"
     with pytest.raises(InputError) as info:
@@ -88,7 +95,7 @@ def test_a_long_run_splits_the_record_and_characterise_is_told_where(tmp_path: P
     assert ("line 108 (t = 9.9 s): gap of 0.7 s (7 intervals: 6 rows without a reading in "
             "every column); characterise needs a record without gaps: give --window 10.6:29.9 "
             "(the longest segment, 19.3 s) or cut the file at the gap") in str(info.value)
-    window = load_recording(tmp_path / "l.csv", ["T_m1", "T_m2"], window=(10.6, 29.9))
+    window = bridged(tmp_path / "l.csv", ["T_m1", "T_m2"], window=(10.6, 29.9))
     assert window.contiguous and window.t.size == 194 and window.t[0] == pytest.approx(10.6)
 
 
@@ -117,7 +124,7 @@ def test_refusals_name_what_is_missing(tmp_path: Path) -> None:
     lines = stamp.read_text().splitlines()
     lines[10] = "," + lines[10].split(",", 1)[1]  # a row without a time stamp is a dropped row
     stamp.write_text("\n".join(lines) + "\n")
-    rec = load_recording(stamp, ["T_m1", "T_m2"])
+    rec = bridged(stamp, ["T_m1", "T_m2"])
     assert rec.t.size == 50 and any("'t' 1 (first at line 11)" in n for n in rec.notes)
     infinite = write(tmp_path / "i.csv", t, x, y, {"T_m2": [7]}, "inf")
     assert "line 9, column 'T_m2': non-finite value inf" in refusal(infinite)
@@ -141,8 +148,8 @@ def test_parquet_nulls_are_missing_readings_as_in_csv(tmp_path: Path) -> None:
     column = pa.array([None if k in lost else float(v) for k, v in enumerate(y)],
                       type=pa.float64())
     pq.write_table(pa.table({"t": t, "T_m1": x, "T_m2": column}), tmp_path / "p.parquet")
-    from_parquet = load_recording(tmp_path / "p.parquet", ["T_m1", "T_m2"])
-    from_csv = load_recording(write(tmp_path / "p.csv", t, x, y, {"T_m2": lost}),
+    from_parquet = bridged(tmp_path / "p.parquet", ["T_m1", "T_m2"])
+    from_csv = bridged(write(tmp_path / "p.csv", t, x, y, {"T_m2": lost}),
                               ["T_m1", "T_m2"])
     assert np.allclose(from_parquet.t, from_csv.t)
     for name in ("T_m1", "T_m2"):
@@ -170,7 +177,7 @@ def test_invalid_mdf4_samples_are_missing_readings_in_step(tmp_path: Path) -> No
                      [(t, {"T_m1": np.where(bad, -999.0, x), "T_m2": y}),
                       (slow, {"mdot": np.where(flow_bad, -1.0, flow)})],
                      invalid={"T_m1": bad, "mdot": flow_bad})
-    loaded = [load_recording(path, columns) for columns in
+    loaded = [bridged(path, columns) for columns in
               (["T_m1", "T_m2", "mdot"], ["T_m2", "T_m1", "mdot"])]
     for rec in loaded:
         assert rec.t.size == 299  # the last raster row is past the slow group's span
@@ -182,6 +189,8 @@ def test_invalid_mdf4_samples_are_missing_readings_in_step(tmp_path: Path) -> No
         assert any("'T_m1' 3 (first at sample 10 of group 0)" in n for n in rec.notes)
         assert any("'mdot' 3" in n for n in rec.notes), rec.notes
     assert np.array_equal(loaded[0].columns["T_m1"], loaded[1].columns["T_m1"])
+    with pytest.raises(InputError, match=r"sample 10 of group 0, column 'T_m1': missing reading"):
+        load_recording(path, ["T_m1", "T_m2"])  # the default refuses, naming the sample
 
 
 def test_a_window_reads_only_its_rows(tmp_path: Path) -> None:
@@ -190,18 +199,30 @@ def test_a_window_reads_only_its_rows(tmp_path: Path) -> None:
     t = np.arange(400) * TS
     x, y = signals(t)
     path = write(tmp_path / "w.csv", t, x, y, {"T_m2": [0, 1, *range(300, 310)], "T_m1": [150]})
-    whole = load_recording(path, ["T_m1", "T_m2"])
+    whole = bridged(path, ["T_m1", "T_m2"])
     assert len(whole.gaps) == 1  # the 10 missing rows at 30 s
-    rec = load_recording(path, ["T_m1", "T_m2"], window=(5.0, 25.0))
+    rec = bridged(path, ["T_m1", "T_m2"], window=(5.0, 25.0))
     assert rec.contiguous and rec.t[0] == pytest.approx(5.0) and rec.t[-1] == pytest.approx(25.0)
     assert rec.notes[0] == "window t = 5-25 s: line 52 to line 252, 201 of 400 rows"
     assert "'T_m1' 1 (first at line 152)" in rec.notes[1]  # named as the file names it
-    open_end = load_recording(path, ["T_m1", "T_m2"], window=(None, 25.0))
+    open_end = bridged(path, ["T_m1", "T_m2"], window=(None, 25.0))
     assert open_end.t[0] == pytest.approx(0.2)  # the late start is trimmed as before
-    inside = load_recording(path, ["T_m1", "T_m2"], window=(20.0, None))
+    inside = bridged(path, ["T_m1", "T_m2"], window=(20.0, None))
     assert len(inside.gaps) == 1
     bare = write(tmp_path / "n.csv", None, x, y, {})
-    rows = load_recording(bare, ["T_m1", "T_m2"], time=None, sample_interval=TS, window=(1, 2))
+    rows = bridged(bare, ["T_m1", "T_m2"], time=None, sample_interval=TS, window=(1, 2))
     assert rows.t.size == 11 and rows.t[0] == pytest.approx(1.0)
     assert "--window 50:60 holds 0 rows (need at least 10); the record spans t = 0-39.9 s" in (
         refusal(path, window=(50.0, 60.0)))
+
+
+def test_a_missing_reading_is_refused_by_default_saying_how_to_bridge_it(tmp_path: Path) -> None:
+    t = np.arange(100) * TS
+    x, y = signals(t)
+    for text in ("", "nan"):
+        path = write(tmp_path / f"d{text}.csv", t, x, y, {"T_m2": [40]}, text)
+        with pytest.raises(InputError) as info:
+            load_recording(path, ["T_m1", "T_m2"])
+        assert str(info.value).endswith(
+            "line 42, column 'T_m2': missing reading (empty cell or non-finite value nan); give "
+            "--missing bridge to drop such rows and bridge them like rows the logger lost")

@@ -88,6 +88,8 @@ def options_of(args: argparse.Namespace) -> dict[str, Any]:
         options["flow"] = args.flow
     if args.window is not None:
         options["window"] = args.window
+    if args.missing != "refuse":
+        options["missing"] = args.missing
     return options
 
 

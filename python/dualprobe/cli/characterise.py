@@ -195,6 +195,7 @@ def run(args: argparse.Namespace) -> int:
         flow=args.flow,
         track=args.track,
         window=args.window,
+        missing=args.missing,
     )
     print_notes(result.notes)
     if args.json is not None:

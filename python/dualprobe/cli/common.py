@@ -10,7 +10,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NoReturn
 
-from dualprobe.io import TIME_UNITS, EstimationError, InputError
+from dualprobe.io import MISSING, TIME_UNITS, EstimationError, InputError
 
 __all__ = [
     "EXIT_ESTIMATION",
@@ -154,6 +154,14 @@ def add_time_arguments(parser: Any, *, unit: bool = False) -> None:
         help="use only the rows from START to END seconds of the time column (either may be "
         "left out: 600: or :1200); a gap, a missing reading or jitter outside it does not "
         "matter",
+    )
+    parser.add_argument(
+        "--missing",
+        choices=MISSING,
+        default="refuse",
+        help="a missing reading (empty cell, nan, a Parquet null, an MDF4 sample marked "
+        "invalid) in a sensor column: refuse the file naming it (default), or bridge: drop "
+        "its row and bridge up to 3 in a row like rows a logger lost, with a note",
     )
     if unit:
         parser.add_argument(

@@ -121,6 +121,7 @@ def run(args: argparse.Namespace) -> int:
         flow_column=args.flow,
         noise_std=args.noise_std,
         window=args.window,
+        missing=args.missing,
     )
     if args.json is not None:
         write_json(result, args.json)

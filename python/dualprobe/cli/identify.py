@@ -119,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
         sample_interval=args.sample_interval,
         raster=args.output,
         window=args.window,
+        missing=args.missing,
     )
     y = recording.columns[args.output]
     document: dict[str, Any] = {"file": str(args.data), "output": args.output}

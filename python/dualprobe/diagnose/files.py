@@ -29,6 +29,7 @@ def diagnose_file(
     noise_std: float | tuple[float, float] | None = None,
     progress: Callable[[str], None] | None = None,
     window: tuple[float | None, float | None] | None = None,
+    missing: str = "refuse",
 ) -> Diagnosis:
     """Load a recording (CSV, Parquet, MDF4: ``dualprobe.io.load_recording``; ``time_unit`` s,
     ms, us or min overrides the header's) and diagnose it; `flow_column`
@@ -43,7 +44,8 @@ def diagnose_file(
     # said in a note), a gap refused naming it
     recording = load_recording(path, names, time=time or None, time_unit=time_unit,
                                sample_interval=sample_interval, min_rows=MIN_SAMPLES,
-                               required=[flow_column] if flow_column else [], window=window)
+                               required=[flow_column] if flow_column else [], window=window,
+                               missing=missing)
     recording.require_contiguous("diagnose")
     columns = recording.columns
     try:

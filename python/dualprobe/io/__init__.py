@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from dualprobe.io.csv import write_columns
 from dualprobe.io.errors import EstimationError, InputError
+from dualprobe.io.missing import MISSING
 from dualprobe.io.recording import FORMATS, Recording, detect_format, load_columns, load_recording
 from dualprobe.io.timebase import TIME_UNITS, Gap
 
 __all__ = [
     "FORMATS",
+    "MISSING",
     "TIME_UNITS",
     "EstimationError",
     "Gap",

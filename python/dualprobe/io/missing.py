@@ -2,7 +2,10 @@
 
 Field loggers lose a channel's frame now and then and write nothing (or ``nan``) in its cell;
 a channel that starts late or stops early leaves its first or last cells empty. Refusing the
-whole record for one empty cell (as this loader did) left such files unreadable. The rule:
+whole record for one empty cell left such files unreadable; passing one over silently would
+hide a fault. So a missing reading is refused by default, naming its row and column (the bad
+input rule of the command line since issue 2), and ``--missing bridge`` (``bridge=True``) says
+the rows may go. The rule then:
 
 * A row in which any requested channel, or the time stamp, has no reading is a **dropped
   row**: it is removed, and the time base's rules (:mod:`dualprobe.io.timebase`) apply to the
@@ -28,7 +31,9 @@ import numpy as np
 
 from dualprobe.io.errors import InputError
 
-__all__ = ["MIN_PRESENT_SHARE", "Dropped", "drop_missing"]
+__all__ = ["MIN_PRESENT_SHARE", "MISSING", "Dropped", "drop_missing"]
+
+MISSING = ("refuse", "bridge")  # what to do with a missing reading (--missing)
 
 # Below this share of readings in the rows between the first and last complete row, a column
 # is not a channel with lost frames but one logged at another rate (module docstring). At half
@@ -51,15 +56,17 @@ def drop_missing(
     label: Callable[[int], str],
     *,
     strict: bool = False,
+    bridge: bool = False,
     required: Collection[str] = (),
 ) -> Dropped | None:
     """The rows to keep when some readings are NaN, or None when none is.
 
     ``columns`` are the channels and the time stamps (keyed by the names to report, looked up
-    in ``names`` for the file's spelling), ``label(i)`` names file row i. ``strict``: refuse the
-    first missing reading instead (the strict loader needs every reading); ``required``: the
-    columns in which a missing value is refused all the same (a flow column: issue 11 asks a
-    NaN there to be an input error).
+    in ``names`` for the file's spelling), ``label(i)`` names file row i. Without ``bridge``
+    the first missing reading is refused (saying how to bridge it; ``strict``: the strict
+    loader, which needs every reading, says nothing more); ``required``: the columns in which a
+    missing value is refused all the same (a flow column: issue 11 asks a NaN there to be an
+    input error).
     """
     missing = {name: np.isnan(values) for name, values in columns.items()}
     counts = {name: int(np.count_nonzero(mask)) for name, mask in missing.items()}
@@ -70,10 +77,16 @@ def drop_missing(
         return repr(names.get(name, name))
 
     refused = [(int(np.argmax(mask)), name) for name, mask in missing.items()
-               if counts[name] and (strict or name in required)]
+               if counts[name] and (strict or not bridge or name in required)]
     if refused:
         row, name = min(refused)
-        why = "" if strict else f"; {named(name)} needs a value in every row"
+        if strict:
+            why = ""
+        elif bridge or name in required:
+            why = f"; {named(name)} needs a value in every row"
+        else:
+            why = ("; give --missing bridge to drop such rows and bridge them like rows the "
+                   "logger lost")
         raise InputError(
             f"{source}: {label(row)}, column {named(name)}: missing reading (empty cell or "
             f"non-finite value nan){why}"

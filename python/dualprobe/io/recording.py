@@ -22,7 +22,7 @@ import numpy as np
 from dualprobe.io.csv import read_csv
 from dualprobe.io.errors import InputError
 from dualprobe.io.mdf import MDF_MAGIC, read_mdf
-from dualprobe.io.missing import drop_missing
+from dualprobe.io.missing import MISSING, drop_missing
 from dualprobe.io.parquet import PARQUET_MAGIC, read_parquet
 from dualprobe.io.table import Table
 from dualprobe.io.timebase import (
@@ -200,6 +200,7 @@ def load_recording(
     strict: bool = False,
     required: Sequence[str] = (),
     window: tuple[float | None, float | None] | None = None,
+    missing: str = "refuse",
 ) -> Recording:
     """Load columns of a recording in any supported format (CSV, Parquet, MDF4).
 
@@ -225,6 +226,10 @@ def load_recording(
     window:
         (start, end) in seconds of the time column (None: the record's own): only the rows
         inside are read; a gap, a missing reading or jitter outside it does not matter.
+    missing:
+        "refuse" (default): a missing reading (empty cell, NaN, null, an MDF4 sample marked
+        invalid) is an input error naming it; "bridge": its row is dropped and bridged like a
+        row the logger lost (:mod:`dualprobe.io.missing`).
 
     Raises
     ------
@@ -233,6 +238,8 @@ def load_recording(
     """
     path = Path(path)
     time = time or None
+    if missing not in MISSING:
+        raise InputError(f"missing must be one of {', '.join(MISSING)}, got {missing!r}")
     wanted = list(dict.fromkeys(columns))
     if not wanted:
         raise InputError("no columns requested")
@@ -271,7 +278,8 @@ def load_recording(
         stamps = None if stamps is None else stamps[rows]
         checked = data if stamps is None else {**data, time or "time": stamps}
     names = {**table.names, **({time or "time": table.time_name} if table.time_name else {})}
-    dropped = drop_missing(str(path), checked, names, label, strict=strict, required=required)
+    dropped = drop_missing(str(path), checked, names, label, strict=strict,
+                           bridge=missing == "bridge", required=required)
     if dropped is not None:
         kept = dropped.rows
         if kept.size < min_rows:

@@ -335,6 +335,7 @@ def load_pair(
     sample_interval: float | None = None,
     required: Sequence[str] = (),
     window: tuple[float | None, float | None] | None = None,
+    missing: str = "refuse",
 ) -> Recording:
     """Load the columns of a recording in any format (CSV, Parquet, MDF4) for characterise:
     jitter resampled, units converted, rows with a missing reading dropped and bridged (notes
@@ -344,7 +345,7 @@ def load_pair(
         raise InputError("without a time column the sample interval must be given")
     recording = load_recording(
         path, columns, time=time or None, time_unit=time_unit, sample_interval=sample_interval,
-        required=required, window=window,
+        required=required, window=window, missing=missing,
     )
     recording.require_contiguous("characterise")
     return recording
@@ -368,13 +369,15 @@ def characterise_file(
     track: str = "auto",
     uncertainty: bool = True,
     window: tuple[float | None, float | None] | None = None,
+    missing: str = "refuse",
 ) -> Characterisation:
     """Load a recording (CSV, Parquet or MDF4) and characterise it (see
     :func:`characterise_arrays`).
 
     Without a time column (``time=None`` or ``""``) the sample interval must be given;
     ``time_unit`` (s, ms, us, min) overrides the unit read from the time column's header;
-    ``window`` (start, end) in seconds reads only those rows.
+    ``window`` (start, end) in seconds reads only those rows; ``missing`` "bridge" drops and
+    bridges rows with a missing reading (default "refuse": an input error).
     """
     if sensor1 == sensor2:
         raise InputError(f"--sensor1 and --sensor2 name the same column {sensor1!r}")
@@ -385,6 +388,7 @@ def characterise_file(
     recording = load_pair(
         path, wanted, time=time, time_unit=time_unit, sample_interval=sample_interval,
         required=[name for name in (reference, flow) if name], window=window,
+        missing=missing,
     )
     columns = recording.columns
     result = characterise_arrays(
