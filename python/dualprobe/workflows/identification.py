@@ -34,7 +34,12 @@ from typing import Any
 
 import numpy as np
 
-from dualprobe.diagnose.floors import channel_noise, perfect_model_floor, refine_noise
+from dualprobe.diagnose.floors import (
+    RESOLUTION,
+    channel_noise,
+    perfect_model_floor,
+    refine_noise,
+)
 from dualprobe.diagnose.residuals import residual_tests
 from dualprobe.diagnose.verdict import MISFIT_LIMIT, STRUCTURE_P, misfit_ratios
 from dualprobe.identify import StepFit, TfFit, simulate_fit
@@ -114,7 +119,8 @@ def check_plunge(t: np.ndarray, y: np.ndarray, fit: StepFit) -> IdentifyCheck:
     level = fit.initial_level + (fit.final_level - fit.initial_level) * step_response(
         stamps - fit.onset, fit.taus)
     residual = y[rows] - level
-    noise = max(fit.noise_std, fit.quantisation / math.sqrt(12.0), 1e-12)
+    # never below diagnose's resolution: noise-free data leave rounding residue, not a misfit
+    noise = max(fit.noise_std, fit.quantisation / math.sqrt(12.0), RESOLUTION)
     ratio = math.sqrt(float(np.mean(residual**2))) / noise
     ts = float(np.median(np.diff(stamps)))
     plunged = (stamps > fit.onset).astype(float)
