@@ -131,6 +131,21 @@ def test_held_readings_are_interpolated_and_noted(tmp_path: Path,
         assert float(np.sqrt(np.mean((columns[name] / truth - 1.0) ** 2))) < 0.05
 
 
+def characterised_gas_rmse(path: Path, out_path: Path, conditions: sim.DriveCycle,
+                           capsys: pytest.CaptureFixture[str], *extra: str) -> tuple[str, float]:
+    """characterise --flow mdot on ``path``: its printed summary (exit 0, no warning) and the
+    reconstructed gas's RMSE against the drive cycle's true gas."""
+    status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path),
+                   *extra])
+    out = capsys.readouterr().out
+    assert status == 0, out
+    assert "warning" not in out, out
+    t, columns, _ = load_columns(out_path, ["T_g_hat"])
+    assert t is not None
+    truth = np.interp(t, conditions.t, conditions.gas)
+    return out, float(np.sqrt(np.mean((columns["T_g_hat"] - truth) ** 2)))
+
+
 def test_jittering_stamps_and_dropped_rows_are_resampled_not_refused(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A logger whose instants scatter by +-10 % of its 0.1 s interval (the time column
@@ -157,16 +172,10 @@ def test_jittering_stamps_and_dropped_rows_are_resampled_not_refused(
         path, out_path = tmp_path / f"field{jitter}.csv", tmp_path / f"out{jitter}.csv"
         write_columns(path, {"t": rec.t[keep], "T_m1": rec.t1[keep], "T_m2": rec.t2[keep],
                              "mdot": rec.flow[keep]})
-        status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path)])
-        out = capsys.readouterr().out
-        assert status == 0, out
+        out, error = characterised_gas_rmse(path, out_path, conditions, capsys)
         assert ("note: clock jitter: intervals scatter by up to" in out) == bool(jitter)
         assert ("bridged by linear interpolation" in out) == bool(jitter)
-        assert "warning" not in out, out
-        t, columns, _ = load_columns(out_path, ["T_g_hat"])
-        assert t is not None
-        truth = np.interp(t, conditions.t, conditions.gas)
-        errors.append(float(np.sqrt(np.mean((columns["T_g_hat"] - truth) ** 2))))
+        errors.append(error)
     print("gas RMSE uniform / jittered with lost rows:", errors)
     # the resampling's own error is ~1/20 of the gas error; 15 % leaves room for the noise
     # draws, which differ between the two records
@@ -207,17 +216,11 @@ def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
     errors = []
     for path in (intact, lost):
         out_path = tmp_path / f"out_{path.name}"
-        status = main(["characterise", str(path), "--flow", "mdot", "--output", str(out_path),
-                       "--missing", "bridge"])
-        out = capsys.readouterr().out
-        assert status == 0, out
+        out, error = characterised_gas_rmse(path, out_path, conditions, capsys,
+                                            "--missing", "bridge")
         noted = "note: missing readings (empty cells, NaN or invalid samples)" in out
         assert noted == (path == lost)
-        assert "warning" not in out, out
-        t, columns, _ = load_columns(out_path, ["T_g_hat"])
-        assert t is not None
-        truth = np.interp(t, conditions.t, conditions.gas)
-        errors.append(float(np.sqrt(np.mean((columns["T_g_hat"] - truth) ** 2))))
+        errors.append(error)
     print("gas RMSE intact / with missing readings:", errors)
     assert errors[1] <= 1.05 * errors[0]
     lines[300] = ",".join([*lines[300].split(",")[:3], ""])

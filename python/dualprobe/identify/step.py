@@ -110,6 +110,11 @@ class StepFit:
     offset: float | None = None
     offset_std: float | None = None
 
+    def response(self, t: np.ndarray) -> np.ndarray:
+        """The fitted step response at the instants ``t`` (s)."""
+        return self.initial_level + (self.final_level - self.initial_level) * step_response(
+            np.asarray(t, dtype=float) - self.onset, self.taus)
+
     @property
     def model(self) -> str:
         poles = "".join(f"(1+{tau:.4g}s)" for tau in sorted(self.taus))

@@ -43,7 +43,6 @@ from dualprobe.diagnose.floors import (
 from dualprobe.diagnose.residuals import residual_tests
 from dualprobe.diagnose.verdict import MISFIT_LIMIT, STRUCTURE_P, misfit_ratios
 from dualprobe.identify import StepFit, TfFit, simulate_fit
-from dualprobe.identify.step import step_response
 
 __all__ = ["IdentifyCheck", "check_identified", "check_plunge"]
 
@@ -116,9 +115,7 @@ def check_plunge(t: np.ndarray, y: np.ndarray, fit: StepFit) -> IdentifyCheck:
     noise alone. On the refresh rows when the reading is held, as the fit is."""
     rows = np.arange(fit.hold_phase, y.size, fit.hold)
     stamps = t[rows]
-    level = fit.initial_level + (fit.final_level - fit.initial_level) * step_response(
-        stamps - fit.onset, fit.taus)
-    residual = y[rows] - level
+    residual = y[rows] - fit.response(stamps)
     # never below diagnose's resolution: noise-free data leave rounding residue, not a misfit
     noise = max(fit.noise_std, fit.quantisation / math.sqrt(12.0), RESOLUTION)
     ratio = math.sqrt(float(np.mean(residual**2))) / noise
