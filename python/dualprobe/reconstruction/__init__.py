@@ -95,13 +95,16 @@ two sensors alone).
 from __future__ import annotations
 
 from dualprobe.reconstruction.pair import MODES, Reconstruction, reconstruct, reconstruct_pair
+from dualprobe.reconstruction.resolution import Bandwidth, bandwidth
 from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother
 from dualprobe.reconstruction.stages import resolvable_stages
 
 __all__ = [
     "MODES",
+    "Bandwidth",
     "Reconstruction",
     "SmootherFit",
+    "bandwidth",
     "fit_smoother",
     "reconstruct",
     "reconstruct_pair",

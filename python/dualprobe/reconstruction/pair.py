@@ -17,6 +17,7 @@ from dualprobe.reconstruction.checks import (
     check_signals,
     effective_sigma,
 )
+from dualprobe.reconstruction.resolution import Bandwidth, bandwidth
 from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother
 from dualprobe.reconstruction.statespace import causal_filter
 
@@ -29,12 +30,14 @@ MODES = ("smoother", "filter", "inverse")
 class Reconstruction:
     """The gas temperature at the sample instants (NaN where it cannot be formed), its
     posterior standard deviation given the model (smoother; NaN for the other modes), the mode,
-    and the smoother's fit when one ran."""
+    the smoother's fit when one ran, and the smoother's bandwidth (what ``gas_std`` covers;
+    :mod:`~dualprobe.reconstruction.resolution`)."""
 
     gas: np.ndarray
     gas_std: np.ndarray
     mode: str
     fit: SmootherFit | None
+    bandwidth: Bandwidth | None = None
 
 
 def reconstruct(
@@ -106,7 +109,8 @@ def reconstruct(
         schedule=schedule,
     )
     if mode == "smoother":
-        return Reconstruction(fit.gas, fit.gas_std, mode, fit)
+        return Reconstruction(fit.gas, fit.gas_std, mode, fit,
+                              bandwidth(fit.model, fit.background_q, fit.sigma))
     gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
                         schedule=schedule) + fit.offset
     return Reconstruction(gas, nan, mode, fit)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from dualprobe.estimation import PairEstimate
+from dualprobe.reconstruction import Bandwidth
 from dualprobe.report.json import jsonable
 from dualprobe.workflows.checks import ModelCheck
 
@@ -47,6 +48,7 @@ class Characterisation:
     requested_order: int | None = None
     notes: tuple[str, ...] = ()  # one-line notes of the loader (units, jitter, interpolation)
     gas_std: np.ndarray | None = None  # posterior standard deviation of the reconstruction
+    bandwidth: Bandwidth | None = None  # the smoother's: what gas_std covers
     model_check: ModelCheck | None = None
     flow: np.ndarray | None = None  # the flow column, when a flow law was asked for
     signals: tuple[np.ndarray, np.ndarray] | None = None  # the two sensors' readings
@@ -175,6 +177,8 @@ class Characterisation:
                 "reliable": not doubts,
                 "doubts": doubts,
             }
+            if self.bandwidth is not None:
+                document["reconstruction"].update(self.bandwidth.to_json_dict())
         return jsonable(document)
 
     # ---------------------------------------------------------------------------------------
@@ -259,6 +263,8 @@ class Characterisation:
             lines.append(text)
             lines.extend(f"warning: reconstruction not reliable: {doubt}"
                          for doubt in self.reconstruction_doubts())
+            if self.bandwidth is not None:
+                lines.append(f"  note: {self.bandwidth.summary()}")
             if model is not None and model.kind == "tracked" and self.gas_std is not None:
                 # measured on separately simulated drive cycles: the gas error over T_g_std had
                 # an RMS of 0.6-3.9 with the flow, and 1.0-31 tracked without it

@@ -13,7 +13,7 @@ import numpy as np
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
-from dualprobe.reconstruction import Reconstruction, reconstruct
+from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import (
@@ -250,11 +250,12 @@ def characterise_arrays(
     refuse_opposed(static, columns)
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
+    resolved: Bandwidth | None = None
     rmse: float | None = None
     residuals = None
     if reconstruction is not None:
         result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
-        gas, gas_std = result.gas, result.gas_std
+        gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
         residuals = _residuals(result, t1, t2, static)
         if reference is not None:
             valid = np.isfinite(gas)
@@ -284,6 +285,7 @@ def characterise_arrays(
         source=source,
         requested_order=requested,
         gas_std=gas_std,
+        bandwidth=resolved,
         model_check=check,
         flow=None if flow is None else np.asarray(flow, dtype=np.float64),
         signals=readings,
