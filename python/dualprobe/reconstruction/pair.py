@@ -110,7 +110,8 @@ def reconstruct(
     )
     if mode == "smoother":
         return Reconstruction(fit.gas, fit.gas_std, mode, fit,
-                              bandwidth(fit.model, fit.background_q, fit.sigma))
+                              bandwidth(fit.model, fit.background_q, fit.sigma,
+                                        steps_sharp=fit.increments == "student_t"))
     gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
                         schedule=schedule) + fit.offset
     return Reconstruction(gas, nan, mode, fit)

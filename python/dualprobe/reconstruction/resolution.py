@@ -37,22 +37,25 @@ class Bandwidth:
     """The smoother's bandwidth in Hz: at the median row's time constants, and the range over
     the record's rows (5 % and 95 % of the intervals; all three equal at constant time
     constants). ``limited`` when it reaches the Nyquist frequency (the samples, not the
-    sensors, limit it)."""
+    sensors, limit it). ``steps_sharp``: the heavy-tailed (Student-t) smoother, whose
+    bandwidth is that of the gas's ordinary motion while a step stays a step."""
 
     hz: float
     low_hz: float
     high_hz: float
     limited: bool
+    steps_sharp: bool = False
 
     def to_json_dict(self) -> dict[str, object]:
         return {"bandwidth_hz": self.hz, "bandwidth_range_hz": [self.low_hz, self.high_hz],
-                "nyquist_limited": self.limited}
+                "nyquist_limited": self.limited, "steps_kept_sharp": self.steps_sharp}
 
     def summary(self) -> str:
         spread = ("" if self.high_hz <= self.low_hz * 1.01
                   else f" ({self.low_hz:.3g}-{self.high_hz:.3g} Hz as the time constants vary)")
         limit = " (the sampling rate's limit)" if self.limited else ""
-        return (f"the reconstruction resolves the gas up to {self.hz:.3g} Hz{spread}{limit}; "
+        what = "the gas's ordinary motion (steps stay sharp)" if self.steps_sharp else "the gas"
+        return (f"the reconstruction resolves {what} up to {self.hz:.3g} Hz{spread}{limit}; "
                 "T_g_std covers the gas to that bandwidth, not faster fluctuation")
 
 
@@ -128,16 +131,18 @@ def _crossings(model: PairModel, q: float, sigma: np.ndarray, slices: np.ndarray
     return np.where(capped, nyquist, np.sqrt(low * high))
 
 
-def bandwidth(model: PairModel, q: float, sigma: tuple[float, float]) -> Bandwidth:
+def bandwidth(model: PairModel, q: float, sigma: tuple[float, float], *,
+              steps_sharp: bool = False) -> Bandwidth:
     """The smoother's bandwidth (module docstring) over the record's intervals: the heating
     time constants of each interval's schedule level (hysteretic sensors: the heating ones).
     ``q``: the gas intensity of the ordinary motion (the Student-t smoother's
-    ``background_q``), ``sigma``: the noise levels the smoother used."""
+    ``background_q``), ``sigma``: the noise levels the smoother used, ``steps_sharp``: the
+    Student-t smoother's (:class:`Bandwidth`)."""
     noise = np.asarray(sigma, dtype=float)
     nyquist = 0.5 / model.ts
     if model.levels is None:
         hz = float(_crossings(model, q, noise, np.zeros(1, dtype=np.intp))[0]) / (2 * math.pi)
-        return Bandwidth(hz, hz, hz, hz >= nyquist * (1.0 - 1e-12))
+        return Bandwidth(hz, hz, hz, hz >= nyquist * (1.0 - 1e-12), steps_sharp)
     used, counts = np.unique(model.levels, return_counts=True)
     values = _crossings(model, q, noise, used * model.mode_count) / (2.0 * math.pi)
     order = np.argsort(values)
@@ -147,4 +152,5 @@ def bandwidth(model: PairModel, q: float, sigma: tuple[float, float]) -> Bandwid
         return float(values[order][min(int(np.searchsorted(cumulative, p)), used.size - 1)])
 
     hz = quantile(0.5)
-    return Bandwidth(hz, quantile(0.05), quantile(0.95), hz >= nyquist * (1.0 - 1e-12))
+    return Bandwidth(hz, quantile(0.05), quantile(0.95), hz >= nyquist * (1.0 - 1e-12),
+                     steps_sharp)

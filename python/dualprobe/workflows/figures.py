@@ -39,7 +39,8 @@ def _reconstruction(result: Characterisation, signals: tuple[np.ndarray, np.ndar
         if result.gas_std is not None:
             ax.fill_between(t, result.gas_estimate - 2.0 * result.gas_std,
                             result.gas_estimate + 2.0 * result.gas_std, color="C3", alpha=0.25,
-                            lw=0, label="±2σ")
+                            lw=0, label="±2σ" if result.bandwidth is None else
+                            f"±2σ (gas resolved to {result.bandwidth.hz:.3g} Hz)")
     ax.set_xlabel("time / s")
     ax.set_ylabel("temperature")
     ax.legend(loc="best", fontsize=8)
