@@ -217,6 +217,7 @@ _PARAM_ORDER = (
     "delay",
     "flow_exponent",
     "flow_reference",
+    "flow_delay",
     "level_exponent",
     "level_reference",
     "gain",

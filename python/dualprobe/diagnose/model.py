@@ -23,6 +23,7 @@ from dualprobe.diagnose.catalogue import conditions as cond
 from dualprobe.diagnose.catalogue import dynamics as dyn
 from dualprobe.diagnose.catalogue import static
 from dualprobe.diagnose.catalogue.logger import hold_index
+from dualprobe.models.shift import later
 
 __all__ = [
     "Context",
@@ -101,14 +102,18 @@ def simulate_effects(
 
     Keys (units in ``catalogue.UNITS``): ``initial`` and ``tau`` (or ``tau_heat`` and
     ``tau_cool``), optional ``tau2``, ``delay``, ``gain``, ``offset``, ``curvature``,
-    ``drift_rate``, ``flow_exponent`` with ``flow_reference`` (needs `flow`),
+    ``drift_rate``, ``flow_exponent`` with ``flow_reference`` (needs `flow`) and the flow's
+    ``flow_delay`` (the flow at the sensor is `flow` that many seconds later),
     ``level_exponent`` with ``level_reference``, ``hold_samples`` with ``hold_phase``, and
     ``input_hold`` = 1 when the reference is held over each sample interval (paper eq. 8)."""
     u = np.asarray(reference, dtype=float)
+    moved = None
+    if flow is not None and "flow_exponent" in params:
+        moved = later(flow, params.get("flow_delay", 0.0), ts)
     context = context_for(
         u,
         ts,
-        flow if "flow_exponent" in params else None,
+        moved,
         flow_reference=params.get("flow_reference"),
         level_reference=params.get("level_reference"),
     )

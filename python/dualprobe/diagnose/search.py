@@ -11,6 +11,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+from scipy import stats
 
 from dualprobe.diagnose.catalogue import FITTED_EFFECTS, Scale, effect_params
 from dualprobe.diagnose.catalogue.logger import MIN_FLOOR_SHARE, MIN_STEP
@@ -25,6 +26,7 @@ from dualprobe.diagnose.floors import (
     sampling_floor,
     sensor_noise_gain,
 )
+from dualprobe.diagnose.flow_delay import locate_flow_delay
 from dualprobe.diagnose.ladder import candidate_summary, make_step, pair_search, where
 from dualprobe.diagnose.localise import localise
 from dualprobe.diagnose.model import context_for
@@ -34,6 +36,7 @@ from dualprobe.diagnose.starts import candidate_starts
 from dualprobe.diagnose.verdict import decide
 from dualprobe.io import EstimationError
 from dualprobe.models.gain import GAIN_RANGE, static_gain
+from dualprobe.models.shift import later
 
 __all__ = [
     "MIN_SAMPLES",
@@ -194,6 +197,17 @@ def diagnose(
     if given_y is None:
         noise_y = refine_noise(noise_y, baseline.residual)
         sigma_y = noise_y.std
+    if v is not None:
+        # the flow at the sensor may follow the logged flow (intake to exhaust, ECU filters)
+        delay = locate_flow_delay(problem, baseline, v,
+                                  float(stats.chi2.isf(SIGNIFICANCE_LEVEL, 1)))
+        if delay != 0.0:
+            say(f"flow delay: the sensor follows the flow column {delay:+.3g} s later "
+                "(transport delay; negative: the column lags it)")
+            v = later(v, delay, ts)
+            context = context_for(u, ts, v, flow_reference=context.conditions.flow_reference)
+            problem.context = context
+        problem.constants["flow_dependence"]["flow_delay"] = delay
     white_floor = sigma_y**2 + sensor_noise_gain(ts, baseline.tau) * sigma_u**2
     jumps = sampling_floor(u, ts, baseline.tau, sigma_u)
     rough = roughness_floor(u, ts, baseline.tau, sigma_u)

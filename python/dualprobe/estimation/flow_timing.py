@@ -42,12 +42,9 @@ from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.models.held import unhold
+from dualprobe.models.shift import DELAY_RANGE, DELAY_STEP, DELAY_TOLERANCE, later
 
 __all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law"]
-
-DELAY_RANGE = 2.0  # s: |d| searched (intake-to-exhaust transport and ECU filters: 0.05-1 s)
-DELAY_STEP = 0.25  # s: coarse grid before Brent (the profile is smooth on this scale)
-DELAY_TOLERANCE = 0.01  # s
 
 
 def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
@@ -55,9 +52,7 @@ def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
     held beyond the record); the reference flow stays the same."""
     if delay == 0.0:
         return signal
-    rows = np.arange(signal.values.size, dtype=float)
-    moved = np.interp(rows - delay / ts, rows, signal.values)
-    return dataclasses.replace(signal, values=moved)
+    return dataclasses.replace(signal, values=later(signal.values, delay, ts))
 
 
 def delay_profile(misfit: Callable[[float], float], ts: float,

@@ -77,6 +77,7 @@ UNITS = {
     "drift_rate": "K/h",
     "flow_exponent": "1",
     "flow_reference": "flow unit",
+    "flow_delay": "s",  # located, not fitted: the flow at the sensor follows the column by it
     "level_exponent": "1",
     "level_reference": "K",
     "hold_samples": "samples",
@@ -95,7 +96,8 @@ _KEYS = {
     "offset": ("offset",),
     "nonlinearity": ("curvature",),
     "drift": ("drift_rate",),
-    "flow_dependence": ("tau", "tau_heat", "tau_cool", "flow_exponent", "flow_reference"),
+    "flow_dependence": ("tau", "tau_heat", "tau_cool", "flow_exponent", "flow_reference",
+                        "flow_delay"),
     "level_dependence": ("tau", "tau_heat", "tau_cool", "level_exponent", "level_reference"),
     "sample_and_hold": ("hold_samples", "hold_phase"),
     "quantisation": ("quantisation_step", "quantisation_floor"),
