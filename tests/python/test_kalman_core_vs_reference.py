@@ -251,7 +251,8 @@ def test_physics_steps_through_the_product_pipeline() -> None:
     model = kalman.pair_model(taus[0], taus[1], TS, gas=fit.model.gas)
     reference = kalman.kalman_filter(y - fit.offset, model, q, fit.sigma).gas + fit.offset
     # the product's causal path (what reconstruct_pair(mode="filter") runs)
-    product = causal_filter(y - fit.offset, fit.model, q, fit.sigma) + fit.offset
+    product_gas, product_variance = causal_filter(y - fit.offset, fit.model, q, fit.sigma)
+    product = product_gas + fit.offset
     keep = ~rec.jump_mask(margin=2)  # samples right beside a gas jump excluded
 
     def rmse(x: np.ndarray) -> float:
@@ -265,3 +266,6 @@ def test_physics_steps_through_the_product_pipeline() -> None:
     # path: the same filter to rounding of the centring
     np.testing.assert_allclose(out["gas"], reference, rtol=0, atol=1e-6)
     np.testing.assert_allclose(out["gas"], product, rtol=0, atol=1e-6)
+    # its variance (T_g_std in filter mode) is the core filter's, checked above against the
+    # reference's; the centring changes no decision of the filter
+    np.testing.assert_allclose(product_variance, out["gas_variance"], rtol=1e-9)

@@ -157,8 +157,8 @@ def test_filter_is_causal_and_better_than_the_sensor(steps_10hz: simulate.PairRe
     assert ratio <= 0.06  # the smoother's bound holds causally too (measured 0.009-0.013)
     fit = fit_smoother(rec.t1, rec.t2, rec.ts, PT100_FAST, PT100_SLOW)
     y = np.column_stack([rec.t1, rec.t2]) - fit.offset
-    whole = causal_filter(y, fit.model, fit.background_q, fit.sigma)
-    head = causal_filter(y[:2000], fit.model, fit.background_q, fit.sigma)
+    whole = causal_filter(y, fit.model, fit.background_q, fit.sigma)[0]
+    head = causal_filter(y[:2000], fit.model, fit.background_q, fit.sigma)[0]
     # causality of the filter the product runs (the core's): the first 2000 outputs do not
     # change when later samples are cut off
     np.testing.assert_allclose(head, whole[:2000], rtol=0.0, atol=1e-12)

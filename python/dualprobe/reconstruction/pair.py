@@ -29,7 +29,8 @@ MODES = ("smoother", "filter", "inverse")
 @dataclass(frozen=True, eq=False)
 class Reconstruction:
     """The gas temperature at the sample instants (NaN where it cannot be formed), its
-    posterior standard deviation given the model (smoother; NaN for the other modes), the mode,
+    standard deviation given the model (the smoother's posterior, or the causal filter's own
+    variance as the ECU computes it; NaN for the exact inverse), the mode,
     the smoother's fit when one ran, and the smoother's bandwidth (what ``gas_std`` covers;
     :mod:`~dualprobe.reconstruction.resolution`)."""
 
@@ -112,9 +113,9 @@ def reconstruct(
         return Reconstruction(fit.gas, fit.gas_std, mode, fit,
                               bandwidth(fit.model, fit.background_q, fit.sigma,
                                         steps_sharp=fit.increments == "student_t"))
-    gas = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
-                        schedule=schedule) + fit.offset
-    return Reconstruction(gas, nan, mode, fit)
+    gas, variance = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
+                                  schedule=schedule)
+    return Reconstruction(gas + fit.offset, np.sqrt(np.maximum(variance, 0.0)), mode, fit)
 
 
 def reconstruct_pair(

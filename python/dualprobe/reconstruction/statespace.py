@@ -220,16 +220,17 @@ def continuous_matrix(model: PairModel) -> np.ndarray:
 
 
 def causal_filter(y: np.ndarray, model: PairModel, q: float, sigma: Sequence[float],
-                  schedule: np.ndarray | None = None) -> np.ndarray:
+                  schedule: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The causal reconstruction (as on the ECU): the core's Kalman filter with GLR jump
     detection on ``y`` (N, 2) with this model's time constants, gas model, intensity and noise.
     ``schedule`` (N,): time constants times ``schedule[k]`` at sample k (flow-scheduled: the
     core retunes the filter as the level moves; no jump detection). Returns the filtered gas
-    temperature at each sample."""
+    temperature at each sample and its variance (the filter's own, given the model)."""
     cool = (model.taus_cool[0], model.taus_cool[1]) if model.hysteretic else (None, None)
     result = _core.kalman_filter(
         np.ascontiguousarray(y[:, 0]), np.ascontiguousarray(y[:, 1]), model.ts,
         list(model.taus_heat[0]), list(model.taus_heat[1]), [float(s) for s in sigma], float(q),
         gas=model.gas, taus1_cool=None if cool[0] is None else list(cool[0]),
         taus2_cool=None if cool[1] is None else list(cool[1]), schedule=schedule)
-    return np.asarray(result["gas"], dtype=float)
+    return (np.asarray(result["gas"], dtype=float),
+            np.asarray(result["gas_variance"], dtype=float))

@@ -422,8 +422,9 @@ def write_json(result: Characterisation, path: str | os.PathLike[str]) -> None:
 
 def write_reconstruction(result: Characterisation, path: str | os.PathLike[str]) -> None:
     """Write the `--output` CSV: `t,T_g_hat,T_g_std,tau1,tau2`, one row per input row (`nan`
-    where no value): the reconstruction, its standard deviation (the smoother's posterior given
-    the model) and each sensor's dominant time constant in effect at the row."""
+    where no value): the reconstruction, its standard deviation (the smoother's posterior, or
+    the causal filter's own variance, given the model) and each sensor's dominant time
+    constant in effect at the row."""
     if result.gas_estimate is None:
         raise InputError("no reconstruction to write")
     tau1, tau2 = result.time_constants_per_row()
