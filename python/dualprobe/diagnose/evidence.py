@@ -21,6 +21,7 @@ from dualprobe.diagnose.fit import ModelFit, Problem, dot
 from dualprobe.diagnose.residuals import REGIME_THRESHOLD_NOISE, effective_size, moving_mean
 
 __all__ = [
+    "CHI2_THRESHOLD",
     "MIN_GAP_CLOSED",
     "MIN_IMPROVEMENT_OF_NOISE",
     "MIN_STEADY_IMPROVEMENT",
@@ -31,6 +32,7 @@ __all__ = [
 ]
 
 SIGNIFICANCE_LEVEL = 1e-3  # chi-square test of the likelihood ratio
+CHI2_THRESHOLD = float(stats.chi2.isf(SIGNIFICANCE_LEVEL, 1))  # one added parameter
 # A winner must close a quarter of what is left above the floor: a real missing effect alone
 # closes > 60 % of it in the hidden-effect sweeps (the first of two hidden ones less: the second
 # is still in the gap); the effect-size floors do most of the work against spurious ones.
@@ -57,7 +59,7 @@ class Judge:
         self.floor = floor  # white noise plus the sampling floor
         self.white_floor = white_floor
         self.scale = scale
-        self.chi2_threshold = float(stats.chi2.isf(SIGNIFICANCE_LEVEL, 1))
+        self.chi2_threshold = CHI2_THRESHOLD
         self.steady = np.zeros(problem.u.size, dtype=bool)
 
     def set_steady(self, baseline: ModelFit) -> None:

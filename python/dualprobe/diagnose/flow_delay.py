@@ -4,9 +4,9 @@ second later. Given as logged, the flow law misfits at every load change: measur
 cycle, 10 Hz, tau 4 s, m 0.5, a fast reference) 0.3 s late left 2.8 times the noise floor,
 "partly explained"; 1 s late was read as a level dependence with an exponent of 3 plus a flow
 exponent of 0.14, 7.3 times the floor. :func:`locate_flow_delay` finds the delay d (either
-sign) that the first-order flow law fits best (a grid over |d| <= ``DELAY_RANGE``, then bounded
-Brent), and keeps it when it beats no delay by a likelihood ratio (the evidence rule of every
-other effect)."""
+sign) that the first-order flow law fits best (:func:`dualprobe.models.shift.delay_profile`, as
+characterise searches it), and keeps it when it beats no delay by a likelihood ratio (the
+evidence rule of every other effect)."""
 
 from __future__ import annotations
 
@@ -14,13 +14,12 @@ import functools
 import math
 
 import numpy as np
-import scipy.optimize
 
 from dualprobe.diagnose.fit import ModelFit, Problem, fit_model
 from dualprobe.diagnose.model import context_for
 from dualprobe.diagnose.residuals import effective_size
 from dualprobe.diagnose.starts import candidate_starts
-from dualprobe.models.shift import DELAY_RANGE, DELAY_STEP, DELAY_TOLERANCE, later
+from dualprobe.models.shift import delay_profile, later
 
 __all__ = ["locate_flow_delay"]
 
@@ -46,14 +45,9 @@ def locate_flow_delay(problem: Problem, baseline: ModelFit, flow: np.ndarray,
         return fit_model(trial, _EFFECTS, candidate_starts(trial, baseline, _EFFECTS[0],
                                                            _EFFECTS))
 
-    step = max(DELAY_STEP, ts)
-    grid = np.arange(-DELAY_RANGE, DELAY_RANGE + step / 2, step)
-    mse = [fit_at(float(d)).mse for d in grid]
-    best = float(grid[int(np.argmin(mse))])
-    refined = scipy.optimize.minimize_scalar(
-        lambda d: fit_at(float(d)).mse, bounds=(best - step, best + step), method="bounded",
-        options={"xatol": DELAY_TOLERANCE})
-    delay = float(refined.x) if refined.fun < fit_at(best).mse else best
+    delay, _ = delay_profile(lambda d: fit_at(float(d)).mse, ts)
+    if not math.isfinite(delay):
+        return 0.0
     located, none = fit_at(delay), fit_at(0.0)
     if not (math.isfinite(located.mse) and math.isfinite(none.mse)) or located.mse <= 0.0:
         return 0.0

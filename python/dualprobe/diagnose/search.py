@@ -11,11 +11,10 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from dualprobe.diagnose.catalogue import FITTED_EFFECTS, Scale, effect_params
 from dualprobe.diagnose.catalogue.logger import MIN_FLOOR_SHARE, MIN_STEP
-from dualprobe.diagnose.evidence import SIGNIFICANCE_LEVEL, Judge, choose
+from dualprobe.diagnose.evidence import CHI2_THRESHOLD, SIGNIFICANCE_LEVEL, Judge, choose
 from dualprobe.diagnose.fit import ModelFit, Problem, best_of, fit_model
 from dualprobe.diagnose.floors import (
     ChannelNoise,
@@ -199,8 +198,7 @@ def diagnose(
         sigma_y = noise_y.std
     if v is not None:
         # the flow at the sensor may follow the logged flow (intake to exhaust, ECU filters)
-        delay = locate_flow_delay(problem, baseline, v,
-                                  float(stats.chi2.isf(SIGNIFICANCE_LEVEL, 1)))
+        delay = locate_flow_delay(problem, baseline, v, CHI2_THRESHOLD)
         if delay != 0.0:
             say(f"flow delay: the sensor follows the flow column {delay:+.3g} s later "
                 "(transport delay; negative: the column lags it)")

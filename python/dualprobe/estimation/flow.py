@@ -23,13 +23,13 @@ by more than ``PRACTICAL_CHANGE`` (5 %). v_ref is the median flow of the record.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize
+
+from dualprobe.models.minimise import grid_then_brent
 
 __all__ = [
     "CURVE_KNOTS",
@@ -113,26 +113,7 @@ def search_exponent(
 ) -> tuple[float, np.ndarray]:
     """Exponent minimising ``misfit(m)``: the grid, then bounded Brent between the best grid
     point's neighbours. Returns (m, the grid's misfits); NaN when no grid point fits."""
-
-    @functools.cache
-    def cached(m: float) -> float:
-        value = misfit(m)
-        return value if math.isfinite(value) else math.inf
-
-    values = np.array([cached(float(m)) for m in grid])
-    if not np.any(np.isfinite(values)):
-        return math.nan, values
-    best = int(np.argmin(values))
-    lo = float(grid[max(best - 1, 0)])
-    hi = float(grid[min(best + 1, grid.size - 1)])
-    if hi > lo:
-        result = scipy.optimize.minimize_scalar(
-            lambda m: min(cached(float(m)), 1e300), bounds=(lo, hi), method="bounded",
-            options={"xatol": tolerance})
-        m = float(result.x)
-        if cached(m) <= values[best]:
-            return m, values
-    return float(grid[best]), values
+    return grid_then_brent(misfit, grid, tolerance)
 
 
 # --------------------------------------------------------------------------------------------

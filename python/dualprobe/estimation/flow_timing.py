@@ -22,9 +22,7 @@ fell to first order (1.82x, misfit 89); a flow held for 1 s, 1.81x. With both: 1
 from __future__ import annotations
 
 import dataclasses
-import functools
 import math
-from collections.abc import Callable
 
 import numpy as np
 
@@ -42,7 +40,7 @@ from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.models.held import unhold
-from dualprobe.models.shift import DELAY_RANGE, DELAY_STEP, DELAY_TOLERANCE, later
+from dualprobe.models.shift import DELAY_RANGE, delay_profile, later
 
 __all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law"]
 
@@ -53,18 +51,6 @@ def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
     if delay == 0.0:
         return signal
     return dataclasses.replace(signal, values=later(signal.values, delay, ts))
-
-
-def delay_profile(misfit: Callable[[float], float], ts: float,
-                  ) -> tuple[float, float]:
-    """(d, misfit(d)) minimising ``misfit`` over |d| <= DELAY_RANGE: the exponent's search
-    (:func:`dualprobe.estimation.flow.search_exponent`: a grid, then bounded Brent) on a grid
-    of delays. NaN when nothing fits."""
-    cached = functools.cache(misfit)
-    step = max(DELAY_STEP, ts)
-    grid = np.arange(-DELAY_RANGE, DELAY_RANGE + step / 2, step)
-    d, _ = flow.search_exponent(cached, grid=grid, tolerance=DELAY_TOLERANCE)
-    return (d, cached(d)) if math.isfinite(d) else (math.nan, math.inf)
 
 
 def timed_flow_law(

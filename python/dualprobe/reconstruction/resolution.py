@@ -10,10 +10,10 @@ or ``q / w^4`` (irw) the prior's gas spectrum, ``h_i`` sensor i's chain of first
 Why report it: ``T_g_std`` is the posterior of the gas given the model and its prior. Below the
 bandwidth the data decide; above it the estimate follows the prior, which cannot know how much
 faster fluctuation the gas carries (the sensors pass too little of it to see it in their noise).
-Measured on simulated drive cycles with the flow (10 Hz, 0.05 K; a 1 Hz or a 0.15 s
-fluctuation): bandwidths of 0.8-1.1 Hz, the error below them 0.31-0.40 K and covered by
-``T_g_std`` (its RMS 0.6-0.8 standard deviations), the error above them 0.68-1.0 K and not:
-over the whole error ``T_g_std`` was 1.9-2.4 times too small. So the summary states the
+Measured on simulated drive cycles with the flow (2-50 Hz, 0.05-0.15 K; a 1 Hz or a 0.15 s
+fluctuation): bandwidths of 0.5-1.1 Hz, the error below them 0.31-0.88 K and covered by
+``T_g_std`` (its RMS 0.61-1.04 standard deviations), the error above them 0.68-1.13 K and not:
+over the whole error ``T_g_std`` was 1.7-2.6 times too small. So the summary states the
 bandwidth beside the uncertainty.
 """
 
@@ -139,11 +139,8 @@ def bandwidth(model: PairModel, q: float, sigma: tuple[float, float], *,
     ``background_q``), ``sigma``: the noise levels the smoother used, ``steps_sharp``: the
     Student-t smoother's (:class:`Bandwidth`)."""
     noise = np.asarray(sigma, dtype=float)
-    nyquist = 0.5 / model.ts
-    if model.levels is None:
-        hz = float(_crossings(model, q, noise, np.zeros(1, dtype=np.intp))[0]) / (2 * math.pi)
-        return Bandwidth(hz, hz, hz, hz >= nyquist * (1.0 - 1e-12), steps_sharp)
-    used, counts = np.unique(model.levels, return_counts=True)
+    levels = model.levels if model.levels is not None else np.zeros(1, dtype=np.intp)
+    used, counts = np.unique(levels, return_counts=True)
     values = _crossings(model, q, noise, used * model.mode_count) / (2.0 * math.pi)
     order = np.argsort(values)
     cumulative = np.cumsum(counts[order]) / float(np.sum(counts))
@@ -152,5 +149,5 @@ def bandwidth(model: PairModel, q: float, sigma: tuple[float, float], *,
         return float(values[order][min(int(np.searchsorted(cumulative, p)), used.size - 1)])
 
     hz = quantile(0.5)
-    return Bandwidth(hz, quantile(0.05), quantile(0.95), hz >= nyquist * (1.0 - 1e-12),
+    return Bandwidth(hz, quantile(0.05), quantile(0.95), hz >= (0.5 / model.ts) * (1.0 - 1e-12),
                      steps_sharp)
