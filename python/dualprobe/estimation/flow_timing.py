@@ -40,7 +40,7 @@ from dualprobe.estimation.flow import FlowSignal
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.models.held import unhold
-from dualprobe.models.shift import DELAY_RANGE, delay_profile, later
+from dualprobe.models.shift import DELAY_RANGE, DELAY_TOLERANCE, delay_profile, later
 
 __all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law"]
 
@@ -60,7 +60,8 @@ def timed_flow_law(
     (:func:`unhold`). The delay is located on the first-order pair ``base`` scheduled by its
     best power law (the profile's minimum sits at the true delay even where a sheath dominates
     the misfit: 0.0 and -0.1 s for true 0 and -0.1 s, misfit 55 there), then refined with each
-    chosen law (``_ROUNDS``, while it moves by half a row or more); a law chosen on a shifted
+    chosen law (``_ROUNDS``, while it moves by ``DELAY_TOLERANCE`` or more; a shift of
+    under half a row from none is none); a law chosen on a shifted
     flow replaces the one before when it fits better. Returns the estimate, the model (its
     ``delay``) and the flow signal the model's psi is a function of."""
     ts = fit_of(base).ts
@@ -85,10 +86,14 @@ def timed_flow_law(
             trial = delay + _further(t1, t2, estimate, model, chosen_signal, ts)
         else:
             break
-        if not (math.isfinite(trial) and abs(trial - delay) >= ts / 2):
+        # a shift of under half a row from none is none; a delay found is refined to the
+        # search's tolerance: the misfit is sharp in d (a 0.5 s delay located at 0.458 s left
+        # 2.25 times the noise, at 0.5 s 1.12), so half a row (0.05 s at 10 Hz) is too coarse
+        if not (math.isfinite(trial)
+                and abs(trial - delay) >= (ts / 2 if delay == 0.0 else DELAY_TOLERANCE)):
             if round_ == 0:
                 continue
-            break  # settled within half a row
+            break  # settled
         moved = shifted(signal, trial, ts)
         again, law = flow_law(t1, t2, base, moved, run)
         tried.append((trial, fit_of(again).misfit if again.status == "ok" else math.inf))
