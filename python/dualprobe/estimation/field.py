@@ -24,8 +24,8 @@ from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 
-__all__ = ["FlowModel", "RunSvf", "effective_rows", "fit_of", "flow_law", "scheduled_misfit",
-           "window_fits", "windowed_time_constants"]
+__all__ = ["REFINE_GRID", "FlowModel", "RunSvf", "effective_rows", "fit_of", "flow_law",
+           "scheduled_misfit", "window_fits", "windowed_time_constants"]
 
 # run the SVF characterisation (orders, static model, identifiability) with a schedule psi
 class RunSvf(Protocol):
@@ -34,7 +34,7 @@ class RunSvf(Protocol):
 
     def __call__(self, psi: np.ndarray | None, fit_order: int = ...) -> PairEstimate: ...
 
-_REFINE = np.linspace(-0.1, 0.1, 9)  # exponent re-search around the first estimate
+REFINE_GRID = np.linspace(-0.1, 0.1, 9)  # exponent re-search around the first estimate
 _REFINE_ROUNDS = 3  # re-searches (each with the orders and static model chosen at the last)
 _REFINE_SETTLED = 0.005  # an exponent that moves less is settled (its std on drive cycles ~0.003)
 
@@ -176,7 +176,8 @@ def flow_law(
     # misfit then fell towards the grid's edge, 0.659, and the stages came out shared)
     for _ in range(rounds):
         fit = fit_of(estimate)
-        refined, _ = flow.search_exponent(exponent_misfit(t1, t2, fit, signal), grid=m + _REFINE)
+        refined, _ = flow.search_exponent(exponent_misfit(t1, t2, fit, signal),
+                                          grid=m + REFINE_GRID)
         if not math.isfinite(refined):
             break
         trial = run(signal.psi(refined))

@@ -23,6 +23,7 @@ by more than ``PRACTICAL_CHANGE`` (5 %). v_ref is the median flow of the record.
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -61,10 +62,16 @@ class FlowSignal:
     reference: float
     factor: np.ndarray | None = None  # a fixed factor per row (the gas level's, field._level)
 
+    @functools.cached_property
+    def log_ratio(self) -> np.ndarray:
+        """``log(v / v_ref)``, once per signal: the searches evaluate hundreds of exponents, and
+        ``exp(m log_ratio)`` costs a third of a power (0.5 s of a 4.6 s characterisation)."""
+        return np.asarray(np.log(self.values / self.reference))
+
     def psi(self, exponent: float) -> np.ndarray:
         """The schedule ``(v / v_ref)^m`` (time constants scale as its inverse), times
         ``factor`` when there is one."""
-        law = (self.values / self.reference) ** exponent
+        law = np.exp(exponent * self.log_ratio)
         return law if self.factor is None else law * self.factor
 
     @property

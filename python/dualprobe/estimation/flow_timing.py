@@ -28,6 +28,7 @@ import numpy as np
 
 from dualprobe.estimation import flow
 from dualprobe.estimation.field import (
+    REFINE_GRID,
     FlowModel,
     RunSvf,
     effective_rows,
@@ -95,7 +96,13 @@ def timed_flow_law(
                 continue
             break  # settled
         moved = shifted(signal, trial, ts)
-        again, law = flow_law(t1, t2, base, moved, run)
+        if round_ > 0 and abs(trial - delay) < ts / 2:
+            # within a row of the law's delay: that law on the moved flow, not a new search
+            # (which took a sheathed 30 min record from 6.2 s to 8.7 s for the same delay)
+            law = _moved_law(t1, t2, estimate, model, chosen_signal, moved)
+            again = run(law.psi)
+        else:
+            again, law = flow_law(t1, t2, base, moved, run)
         tried.append((trial, fit_of(again).misfit if again.status == "ok" else math.inf))
         if law.scheduled and again.status == "ok" and _better(again, law, estimate, model,
                                                                effective_rows(base),
@@ -151,12 +158,35 @@ def _further(t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, model: Flow
     fit = fit_of(estimate)
 
     def misfit(d: float) -> float:
-        moved = shifted(signal, d, ts)
-        psi = (model.curve.psi(moved.values) if model.curve is not None
-               else model.psi * (moved.values / signal.values) ** model.exponent)
-        return scheduled_misfit(t1, t2, fit, psi)
+        return scheduled_misfit(t1, t2, fit, _law_on(model, signal, shifted(signal, d, ts)))
 
     return delay_profile(misfit, ts)[0]
+
+
+def _moved_law(t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, model: FlowModel,
+               signal: FlowSignal, moved: FlowSignal) -> FlowModel:
+    """``model`` (a law of ``signal``, fitted as ``estimate``) on the flow ``moved``, within a
+    row of it: the exponent searched again around its own (``REFINE_GRID``: m and the delay
+    trade, 0.6974 at the located 0.458 s for a true 0.6986 at 0.5 s), the level term kept."""
+    if model.curve is not None:
+        return dataclasses.replace(model, psi=model.curve.psi(moved.values))
+    factor = model.psi * np.exp(-model.exponent * signal.log_ratio)  # the level term's
+    fit = fit_of(estimate)
+    m, _ = flow.search_exponent(
+        lambda m: scheduled_misfit(t1, t2, fit, factor * np.exp(m * moved.log_ratio)),
+        grid=model.exponent + REFINE_GRID)
+    if not math.isfinite(m):
+        m = model.exponent
+    return dataclasses.replace(model, psi=factor * np.exp(m * moved.log_ratio), exponent=m,
+                               evidence={**model.evidence, "exponent": m})
+
+
+def _law_on(model: FlowModel, signal: FlowSignal, moved: FlowSignal) -> np.ndarray:
+    """The schedule of ``model`` (a law of ``signal``) with ``moved`` as its flow: the level
+    term's factor, a function of the gas at the rows, stays where it is."""
+    if model.curve is not None:
+        return model.curve.psi(moved.values)
+    return model.psi * np.exp(model.exponent * (moved.log_ratio - signal.log_ratio))
 
 
 _ROUNDS = 4  # refinements of the delay with the law chosen last (each a flow_law run)

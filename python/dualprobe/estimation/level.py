@@ -9,7 +9,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Callable
 
@@ -114,9 +113,12 @@ def search(
     # (50 Hz, jittered clock) puts a row beyond any gas level, so c's square cannot blow up
     deviation = np.clip((level - reference) / span, -_CLIP, _CLIP)
 
+    log_ratio = signal.log_ratio
+
     def schedule(p: np.ndarray) -> np.ndarray:
+        # psi = (v / v_ref)^m exp(-log_tau), one exp per trial (the search's hot path)
         log_tau = (float(p[1]) + float(p[2]) * deviation) * deviation
-        return dataclasses.replace(signal, factor=np.exp(-log_tau)).psi(float(p[0]))
+        return np.exp(float(p[0]) * log_ratio - log_tau)
 
     def misfit(p: np.ndarray) -> float:
         # a large finite value, not inf: Nelder-Mead subtracts the simplex's values

@@ -7,9 +7,10 @@ smoother's reconstruction) in a child process exactly as a user would, and repor
 the child's wall time, its peak resident memory (``ru_maxrss`` from ``wait4``) and the rows per
 second. The constant-time-constant cases (10 min, 1 h and 6 h at 100 Hz) show the cost's
 growth with length; the flow case (30 min at 10 Hz, time constants following the gas velocity,
-``--flow``) the field path, and the same without the flow column and with gains 0.97/1.03 the
-tracking with its searched static map, or with a sheathed fast sensor the sheathed path. (The
-core's streaming rate against memory bandwidth is the throughput section's.)
+``--flow``) the field path, with both sensors sheathed its order-2 law, and the same without
+the flow column and with gains 0.97/1.03 the tracking with its searched static map, or with a
+sheathed fast sensor the sheathed path. (The core's streaming rate against memory bandwidth is
+the throughput section's.)
 """
 
 from __future__ import annotations
@@ -54,6 +55,9 @@ PIPELINE_CASES = (
     PipelineCase("1 h at 100 Hz", 3600.0, 100.0, 0.0, False),
     PipelineCase("6 h at 100 Hz", 21600.0, 100.0, 0.0, False),
     PipelineCase("30 min at 10 Hz, --flow", 1800.0, 10.0, 0.5, True),
+    # both sensors sheathed: the order-2 law and the level term's searches (issue 11's 5 s)
+    PipelineCase("30 min at 10 Hz, --flow, sheaths 0.3/0.6 s", 1800.0, 10.0, 0.5, True,
+                 sheaths=(0.3, 0.6)),
     # no flow column and unequal gains: tracked time constants with a searched static map
     PipelineCase("30 min at 10 Hz, tracked, gains 0.97/1.03", 1800.0, 10.0, 0.5, False,
                  (0.97, 1.03)),
