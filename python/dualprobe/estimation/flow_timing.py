@@ -81,6 +81,8 @@ def timed_flow_law(
     delay, chosen_signal = 0.0, signal
     tried: list[tuple[float, float]] = [(0.0, fit_of(estimate).misfit)]
     for round_ in range(_ROUNDS + 1):
+        if not fit_of(estimate).misfit > 1.0:
+            break  # at or below the noise no law can replace it (_better): spare the search
         if round_ == 0:
             trial = located
         elif model.scheduled:
@@ -119,7 +121,8 @@ def timed_flow_law(
 
 def _better(again: PairEstimate, law: FlowModel, estimate: PairEstimate, model: FlowModel,
             n_eff: float, *, located: bool = False) -> bool:
-    """Whether the law found on a shifted flow replaces the one before. With the same
+    """Whether the law found on a shifted flow replaces the one before (never one whose misfit
+    is at or below the noise, 1: nothing is left to explain). With the same
     structure (kind, level term, sensor orders, static model) the delay is a parameter like m:
     the smaller misfit wins while the misfit is above the noise (a column 0.1 s ahead of two
     near-equal sheaths: the law at d = 0 took 1.28 / 1.65 s stages for 0.58 / 0.76 s, 1.17
