@@ -172,24 +172,27 @@ def _moved_law(t1: np.ndarray, t2: np.ndarray, estimate: PairEstimate, model: Fl
     row of it: the exponent searched again around its own (``REFINE_GRID``: m and the delay
     trade, 0.6974 at the located 0.458 s for a true 0.6986 at 0.5 s), the level term kept."""
     if model.curve is not None:
-        return dataclasses.replace(model, psi=model.curve.psi(moved.values))
-    factor = model.psi * np.exp(-model.exponent * signal.log_ratio)  # the level term's
+        return dataclasses.replace(model, psi=_law_on(model, signal, moved))
     fit = fit_of(estimate)
     m, _ = flow.search_exponent(
-        lambda m: scheduled_misfit(t1, t2, fit, factor * np.exp(m * moved.log_ratio)),
+        lambda m: scheduled_misfit(t1, t2, fit, _law_on(model, signal, moved, m)),
         grid=model.exponent + REFINE_GRID)
     if not math.isfinite(m):
         m = model.exponent
-    return dataclasses.replace(model, psi=factor * np.exp(m * moved.log_ratio), exponent=m,
+    return dataclasses.replace(model, psi=_law_on(model, signal, moved, m), exponent=m,
                                evidence={**model.evidence, "exponent": m})
 
 
-def _law_on(model: FlowModel, signal: FlowSignal, moved: FlowSignal) -> np.ndarray:
-    """The schedule of ``model`` (a law of ``signal``) with ``moved`` as its flow: the level
-    term's factor, a function of the gas at the rows, stays where it is."""
+def _law_on(model: FlowModel, signal: FlowSignal, moved: FlowSignal,
+            exponent: float | None = None) -> np.ndarray:
+    """The schedule of ``model`` (a law of ``signal``) with ``moved`` as its flow, at
+    ``exponent`` (default the model's): the level term's factor, a function of the gas at the
+    rows, stays where it is."""
     if model.curve is not None:
         return model.curve.psi(moved.values)
-    return model.psi * np.exp(model.exponent * (moved.log_ratio - signal.log_ratio))
+    m = model.exponent if exponent is None else exponent
+    return model.psi * np.exp(m * moved.log_ratio - model.exponent * signal.log_ratio)
 
 
-_ROUNDS = 4  # refinements of the delay with the law chosen last (each a flow_law run)
+_ROUNDS = 4  # refinements of the delay with the law chosen last (a flow_law run each,
+# or within a row the law moved, _moved_law)
