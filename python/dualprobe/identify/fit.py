@@ -21,6 +21,7 @@ from dualprobe.identify.result import (
     TfFit,
 )
 from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE
+from dualprobe.models.jacobian import central_jacobian
 from dualprobe.models.noise import ORDER_IDENTIFY, estimate_noise_std
 
 __all__ = ["fit_transfer_function"]
@@ -187,22 +188,18 @@ def _search(problem: _Problem, duration: float, n_local: int) -> np.ndarray:
 
 def _jacobian(problem: _Problem, theta: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Central-difference Jacobian of the model output with respect to theta."""
-    jac = np.empty((problem.y.size, theta.size))
-    taus = range(1, 1 + problem.order)
-    for j in range(theta.size):
-        step = 1e-5 * scale[j]
-        hi = theta.copy()
-        lo = theta.copy()
-        hi[j] += step
-        lo[j] -= step
-        if j in taus and lo[j] <= 0.0:
-            # a time constant below the step (an output that follows its input within a row)
-            # would be evaluated negative: a relative step instead
-            hi[j], lo[j] = theta[j] * (1.0 + 1e-5), theta[j] / (1.0 + 1e-5)
-        if problem.delay_estimated and j == 1 + problem.order and lo[j] < 0:
-            lo[j] = theta[j]  # one-sided at the delay bound
-        jac[:, j] = (_model_output(problem, hi) - _model_output(problem, lo)) / (hi[j] - lo[j])
-    return jac
+    step = 1e-5 * scale
+    hi, lo = theta + step, theta - step
+    taus = slice(1, 1 + problem.order)
+    # a time constant below the step (an output that follows its input within a row) would
+    # be evaluated negative: a relative step instead
+    crossing = lo[taus] <= 0.0
+    hi[taus] = np.where(crossing, theta[taus] * (1.0 + 1e-5), hi[taus])
+    lo[taus] = np.where(crossing, theta[taus] / (1.0 + 1e-5), lo[taus])
+    at = 1 + problem.order
+    if problem.delay_estimated and lo[at] < 0:
+        lo[at] = theta[at]  # one-sided at the delay bound
+    return central_jacobian(lambda p: _model_output(problem, p), theta, hi, lo)
 
 
 def _full_parameters(problem: _Problem, nonlinear: np.ndarray) -> np.ndarray:

@@ -35,6 +35,7 @@ import numpy as np
 from scipy import linalg, optimize
 
 from dualprobe.identify.result import IdentificationError
+from dualprobe.models.jacobian import central_jacobian
 from dualprobe.models.noise import ORDER_IDENTIFY, estimate_noise_std
 
 __all__ = ["MIN_STEP_NOISE_RATIO", "StepFit", "detect_hold", "fit_step", "step_response"]
@@ -276,17 +277,12 @@ def _statistics(
         taus = taus[::-1]
     theta = np.concatenate([[coef[0], coef[0] + coef[1], nonlinear[0]], taus])
     residual = problem.y - problem.output(theta)
-    jac = np.empty((problem.y.size, theta.size))
     scale = np.maximum(np.abs(theta), 1e-3)
     # a time constant's step is relative: an absolute one crossed zero when a degenerate
     # order-2 fit drove tau_b towards 0 (a drifting bath), and exp(-s / tau) overflowed
     scale[3:] = np.maximum(taus, np.finfo(float).tiny)
-    for j in range(theta.size):
-        step = 1e-6 * scale[j]
-        hi, lo = theta.copy(), theta.copy()
-        hi[j] += step
-        lo[j] -= step
-        jac[:, j] = (problem.output(hi) - problem.output(lo)) / (2 * step)
+    step = 1e-6 * scale
+    jac = central_jacobian(problem.output, theta, theta + step, theta - step)
     size, k = jac.shape
     variance = float(residual @ residual) / max(size - k, 1)
     cov = variance * linalg.pinvh(jac.T @ jac)
