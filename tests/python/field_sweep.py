@@ -5,7 +5,7 @@
 Each case draws m in 0.3-0.7, a time-constant ratio in 2-4, sheath stages of 0.1-0.8 s on each
 sensor with probability 0.6, and gains in 0.97-1.03 on half the cases (20 min, 10 Hz, 0.05 K
 noise, 0.02 K ADC steps: tests/python/test_field_conditions.py). Each line: the flow model, the
-per-row dominant time constants' RMS relative errors, the sensor orders, and "ok" within the
+per-row dominant time constants' RMS relative errors, the sensor orders, and "within" inside the
 issue's bound of the oracle (1.5x with the flow, 2.5x without), "weak" beyond it but better than
 the raw fast sensor, "BAD" worse than the raw fast sensor with exit 0 (a defect), or "REFUSED"
 (exit 3) with the reason.
@@ -45,7 +45,7 @@ def _report(label: str, rec: sim.FieldRecording, target: np.ndarray, best: float
     ours = _rmse(result.gas_estimate, target)
     model = result.estimate.flow_model
     bound = 1.5 if with_flow else 2.5  # issue 11's bounds on the oracle ratio
-    verdict = "BAD" if ours > raw else ("ok" if ours <= bound * best else "weak")
+    verdict = "BAD" if ours > raw else ("within" if ours <= bound * best else "weak")
     tau1, tau2 = result.time_constants_per_row()
     errors = [float(np.sqrt(np.mean((est / truth - 1.0) ** 2)))
               for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2))]
