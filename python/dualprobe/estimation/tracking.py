@@ -310,3 +310,30 @@ def track(
     taus = tuple(engine.polynomial_time_constants(p) for p in polys)
     return Tracking(psi, (taus[0], taus[1]), (polys[0], polys[1]), chosen.penalty,
                     chosen.misfit, stiffest.misfit, freest.misfit, spacing)
+
+
+
+def split_noise(
+    t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, sigma: tuple[float, float],
+    static: tuple[float, float], effective_rows: float,
+) -> float:
+    """The part of a first-order tracked log psi that follows the noise, RMS: the record's even
+    and odd rows (the same gas and flow, independent noise) tracked apart, each with its own
+    penalty by the discrepancy principle at half the effective rows, and half the RMS difference
+    of their log psi (the two differ by their noise, each about twice the whole record's in
+    variance). The model error that both halves absorb alike is not in it: a lower bound on
+    psi's error. NaN when a half cannot be tracked or its psi is not positive."""
+    logs = []
+    for rows in (slice(0, None, 2), slice(1, None, 2)):
+        try:
+            half = track(np.asarray(t1, dtype=float)[rows], np.asarray(t2, dtype=float)[rows],
+                         2.0 * ts, tf=tf, order=1, sigma=sigma,
+                         effective_rows=0.5 * effective_rows, static=static)
+        except TrackingError:
+            return math.nan
+        if not np.all(half.psi > 0.0):
+            return math.nan
+        logs.append(np.log(half.psi))
+    n = min(logs[0].size, logs[1].size)
+    difference = logs[0][:n] - logs[1][:n]
+    return float(0.5 * np.sqrt(np.mean(difference * difference)))

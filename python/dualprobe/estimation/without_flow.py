@@ -4,11 +4,14 @@ the constant model leaves a significant misfit that tracking removes; sheathed p
 first-order tracking leaves misfitting take the sheathed path (:func:`_sheathed`: the order-2
 cross-relation fit, :mod:`dualprobe.estimation.crossfit`, and the joint MAP of psi,
 :mod:`dualprobe.estimation.psi_map`). The result is a schedule psi per sample, as with a flow law
-(:mod:`dualprobe.estimation.field`).
+(:mod:`dualprobe.estimation.field`). A first-order tracked psi carries ``psi_noise`` in its
+evidence (:func:`tracking.split_noise`: how much of it follows the noise), which the model
+check holds to 5 % (``workflows.checks.PSI_NOISE_LIMIT``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -47,7 +50,7 @@ def track_without_flow(
     # unity, yet unit-gain tracking then fails and the pair stayed at constant time constants
     # (9.6x the oracle; searched, 1.38x).
     candidates: list[tuple[float, float] | None] = [(1.0, 0.0), None]
-    tracked = None
+    tracked, tracked_static = None, (1.0, 0.0)
     for static in candidates:
         try:
             if static is None:
@@ -61,7 +64,7 @@ def track_without_flow(
         if not np.all(result.psi > 0.0):
             continue
         if tracked is None or result.misfit < tracked.misfit:
-            tracked = result
+            tracked, tracked_static = result, static
         if flow.evidence(tracked.misfit, 1.0, n_eff) <= GAP_THRESHOLD:
             break  # explains the data: no need for the affine map
     chosen: tuple[PairEstimate, FlowModel] = (base, constant)
@@ -75,9 +78,17 @@ def track_without_flow(
             if estimate.status == "ok":
                 chosen = (estimate, FlowModel("tracked", tracked.psi, evidence=stats,
                                               tracking=tracked))
-    if fit_of(chosen[0]).misfit <= _TRACKING_MISFIT:
-        return chosen
-    return _sheathed(t1, t2, base, chosen, run, stats)
+    if fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
+        chosen = _sheathed(t1, t2, base, chosen, run, stats)
+    model = chosen[1]
+    if model.kind == "tracked" and model.tracking is not None:
+        # the first-order tracking's psi: how much of it follows the noise (the model check
+        # warns beyond PSI_NOISE_LIMIT; the sheathed path's MAP psi has its own prior)
+        noise = tracking.split_noise(t1, t2, base_fit.ts, tf=base_fit.tf, sigma=base_fit.sigma,
+                                     static=tracked_static, effective_rows=n_eff)
+        chosen = (chosen[0], dataclasses.replace(model, evidence={**model.evidence,
+                                                                  "psi_noise": noise}))
+    return chosen
 
 
 def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,

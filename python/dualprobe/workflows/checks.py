@@ -47,7 +47,8 @@ from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
 
-__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "ModelCheck", "check_model", "describe_stages",
+__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "PSI_NOISE_LIMIT", "ModelCheck", "check_model",
+           "describe_stages",
            "held_share", "refuse_implausible", "refuse_opposed", "refuse_undetermined",
            "spurious_shared_stage",
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
@@ -64,6 +65,13 @@ LAG_MARGIN = 3.0
 # repeats (k-1)/k of them (50 % for two); ADC steps with noise, none (0 % on drive cycles with
 # 0.02-0.1 K steps at 2-50 Hz).
 HELD_SHARE = 0.1
+# A first-order tracked schedule (no flow column) whose noise part alone moves the per-row time
+# constants by more than this, RMS: ``psi_noise`` (tracking.split_noise: the even and odd rows
+# tracked apart), a lower bound on psi's error. Measured on drive cycles (2-50 Hz): 0.013-0.024
+# on tracked pairs 2.7-10 % off; 0.053 and 0.076 on a 50 Hz and a 2 Hz pair whose sheaths the
+# tracking absorbed (38 % and 28 % off, the gas 5.9x and 3.3x the oracle, their misfits at the
+# noise). The limit keeps well-tracked pairs at half of it or less.
+PSI_NOISE_LIMIT = 0.05
 
 
 def _shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
@@ -161,6 +169,17 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             f"disagree by {math.sqrt(mu):.3g} times what their noise allows (misfit {mu:.3g} x "
             f"the noise, {statistic:.0f} standard deviations); the sensors may be of higher "
             "order, hysteretic, follow the flow, or see different gas temperatures")
+    model = estimate.flow_model
+    psi_noise = model.evidence.get("psi_noise", math.nan) if model is not None else math.nan
+    if psi_noise > PSI_NOISE_LIMIT:
+        reasons.append(
+            f"the tracked time constants are not determined by these data: tracked from the "
+            f"even and from the odd rows apart they differ so that noise alone moves them by "
+            f"{psi_noise:.1%} RMS (more than {PSI_NOISE_LIMIT:.0%}); the tracking follows the "
+            "noise and may absorb an effect the model lacks (e.g. a sheath too short for the "
+            "sample rate), so the per-row time constants and the reconstruction may be far off "
+            "although the signals are explained: give the flow column (--flow) if the "
+            "recording has one")
     ratios = None
     if residuals is not None and sigma is not None:
         ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)

@@ -1,0 +1,70 @@
+"""A tracked schedule that follows the noise is flagged (issue 11: never "explains the data"
+beside a wrong answer).
+
+Without a flow column the tracked common factor psi can absorb what the first-order model
+lacks: a 0.32 s sheath on the slow sensor of a 2 Hz pair (shorter than a row) made the tracking
+choose a penalty 30 times weaker than on the same pair without it, and psi followed the noise
+(its log correlated 0.41 with the truth, per-row time constants 28 % RMS off, the gas 3.3x the
+oracle) while the misfit stayed at the noise. The check tracks the even and the odd rows apart
+(tracking.split_noise): their difference is noise only. Recordings from the project's
+drive-cycle simulator (dualprobe.simulate), written apart from the check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dualprobe import simulate as sim
+from dualprobe.workflows.characterise import characterise_arrays
+from dualprobe.workflows.checks import PSI_NOISE_LIMIT
+
+
+def _pair(sheath2: float) -> sim.FieldRecording:
+    # 20 min at 2 Hz, 0.141 K noise, elements 7.4 / 23.7 s following the velocity with
+    # m = 0.37 (the sheath with them), gains 0.972 / 0.992 (field_sweep.py 13 8 noflow wide)
+    rng = np.random.default_rng(6305)
+    conditions = sim.drive_cycle(1200.0, rng)
+    s1 = sim.FieldSensor(7.4, 0.37, 0.0, gain=0.972, noise_std=0.141)
+    s2 = sim.FieldSensor(7.4 * 3.2, 0.37, sheath2, gain=0.992, noise_std=0.141)
+    return sim.simulate_field_pair(conditions, s1, s2, sample_rate=2.0, quantisation=0.0,
+                                   rng=rng)
+
+
+def _characterise(rec: sim.FieldRecording) -> tuple[object, float, float, list[str], bool]:
+    """(result, per-row error of sensor 1's time constants (relative RMS), psi_noise, the
+    model check's reasons, adequate)."""
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    assert result.model_check is not None and result.estimate.flow_model is not None
+    assert result.estimate.flow_model.kind == "tracked"
+    tau1, _ = result.time_constants_per_row()
+    error = float(np.sqrt(np.mean((tau1 / rec.tau1 - 1.0) ** 2)))
+    noise = float(result.estimate.flow_model.evidence.get("psi_noise", np.nan))
+    return result, error, noise, result.model_check.reasons, result.model_check.adequate
+
+
+def _flagged(reasons: list[str]) -> bool:
+    return any("tracked time constants are not determined" in r for r in reasons)
+
+
+def test_a_tracked_schedule_that_absorbs_a_sheath_is_not_called_adequate() -> None:
+    _, error, noise, reasons, adequate = _characterise(_pair(0.32))
+    # the honesty property, whatever the tracker: per-row time constants more than 15 % RMS
+    # off (three times the 5 % a field characterisation is held to) are never reported beside
+    # "adequate" (measured: 28 % off, psi_noise 0.076, flagged; a tracker that got them right
+    # would pass too)
+    assert error <= 0.15 or (not adequate and _flagged(reasons)), (error, noise, reasons)
+    if _flagged(reasons):
+        assert noise > PSI_NOISE_LIMIT
+
+
+def test_a_tracked_schedule_that_follows_the_flow_is_not_flagged() -> None:
+    # the same pair without the sheath: tracked 7.6 % RMS off in log, psi_noise 0.024 (a lower
+    # bound on that error: noise only), not flagged
+    rec = _pair(0.0)
+    result, error, noise, reasons, _ = _characterise(rec)
+    assert error < 0.1
+    assert not _flagged(reasons), reasons
+    assert 0.0 < noise < PSI_NOISE_LIMIT
+    tau1, _ = result.time_constants_per_row()  # type: ignore[attr-defined]
+    log_error = np.log(tau1 / rec.tau1)
+    assert noise <= float(np.sqrt(np.mean((log_error - log_error.mean()) ** 2)))
