@@ -142,7 +142,8 @@ class Tracking:
     ``psi`` (N,) the common factor (mean 1): the time constants at row k are
     ``time_constants / psi[k]``; ``time_constants`` per sensor (order 2: both stages) at
     psi = 1; ``misfit`` the tracked fit's smallest generalised eigenvalue, ``misfit_constant``
-    the same model's with psi constant (the stiffest penalty); ``spacing`` knots in samples."""
+    the same model's with psi constant (the stiffest penalty); ``spacing`` knots in samples;
+    ``static`` the map (g, o) of sensor 2 onto sensor 1 it was tracked with."""
 
     psi: np.ndarray
     time_constants: tuple[tuple[float, ...], tuple[float, ...]]
@@ -152,6 +153,7 @@ class Tracking:
     misfit_constant: float
     misfit_free: float
     spacing: int
+    static: tuple[float, float]
 
     @property
     def variation(self) -> float:
@@ -309,8 +311,7 @@ def track(
         polys.append(tuple(float(v) / (gain if i else 1.0) for v in c))
     taus = tuple(engine.polynomial_time_constants(p) for p in polys)
     return Tracking(psi, (taus[0], taus[1]), (polys[0], polys[1]), chosen.penalty,
-                    chosen.misfit, stiffest.misfit, freest.misfit, spacing)
-
+                    chosen.misfit, stiffest.misfit, freest.misfit, spacing, (gain, offset))
 
 
 def split_noise(
@@ -323,11 +324,11 @@ def split_noise(
     of their log psi (the two differ by their noise, each about twice the whole record's in
     variance). The model error that both halves absorb alike is not in it: a lower bound on
     psi's error. NaN when a half cannot be tracked or its psi is not positive."""
+    u1, u2 = np.asarray(t1, dtype=float), np.asarray(t2, dtype=float)
     logs = []
     for rows in (slice(0, None, 2), slice(1, None, 2)):
         try:
-            half = track(np.asarray(t1, dtype=float)[rows], np.asarray(t2, dtype=float)[rows],
-                         2.0 * ts, tf=tf, order=1, sigma=sigma,
+            half = track(u1[rows], u2[rows], 2.0 * ts, tf=tf, order=1, sigma=sigma,
                          effective_rows=0.5 * effective_rows, static=static)
         except TrackingError:
             return math.nan

@@ -50,7 +50,7 @@ def track_without_flow(
     # unity, yet unit-gain tracking then fails and the pair stayed at constant time constants
     # (9.6x the oracle; searched, 1.38x).
     candidates: list[tuple[float, float] | None] = [(1.0, 0.0), None]
-    tracked, tracked_static = None, (1.0, 0.0)
+    tracked = None
     for static in candidates:
         try:
             if static is None:
@@ -64,7 +64,7 @@ def track_without_flow(
         if not np.all(result.psi > 0.0):
             continue
         if tracked is None or result.misfit < tracked.misfit:
-            tracked, tracked_static = result, static
+            tracked = result
         if flow.evidence(tracked.misfit, 1.0, n_eff) <= GAP_THRESHOLD:
             break  # explains the data: no need for the affine map
     chosen: tuple[PairEstimate, FlowModel] = (base, constant)
@@ -85,7 +85,8 @@ def track_without_flow(
         # the first-order tracking's psi: how much of it follows the noise (the model check
         # warns beyond PSI_NOISE_LIMIT; the sheathed path's MAP psi has its own prior)
         noise = tracking.split_noise(t1, t2, base_fit.ts, tf=base_fit.tf, sigma=base_fit.sigma,
-                                     static=tracked_static, effective_rows=n_eff)
+                                     static=model.tracking.static,
+                                     effective_rows=n_eff)
         chosen = (chosen[0], dataclasses.replace(model, evidence={**model.evidence,
                                                                   "psi_noise": noise}))
     return chosen

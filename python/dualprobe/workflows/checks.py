@@ -68,7 +68,7 @@ HELD_SHARE = 0.1
 # A first-order tracked schedule (no flow column) whose noise part alone moves the per-row time
 # constants by more than this, RMS: ``psi_noise`` (tracking.split_noise: the even and odd rows
 # tracked apart), a lower bound on psi's error. Measured on drive cycles (2-50 Hz): 0.013-0.024
-# on tracked pairs 2.7-10 % off; 0.053 and 0.076 on a 50 Hz and a 2 Hz pair whose sheaths the
+# on tracked pairs 2.7-10 % off; 0.055 and 0.076 on a 50 Hz and a 2 Hz pair whose sheaths the
 # tracking absorbed (38 % and 28 % off, the gas 5.9x and 3.3x the oracle, their misfits at the
 # noise). The limit keeps well-tracked pairs at half of it or less.
 PSI_NOISE_LIMIT = 0.05
