@@ -4,6 +4,7 @@ deviation (the smoother's posterior)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -18,7 +19,7 @@ from dualprobe.reconstruction.checks import (
     effective_sigma,
 )
 from dualprobe.reconstruction.resolution import Bandwidth, bandwidth
-from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother
+from dualprobe.reconstruction.smoother import SmootherFit, fit_smoother, rescheduled_gas
 from dualprobe.reconstruction.statespace import causal_filter
 
 __all__ = ["MODES", "Reconstruction", "reconstruct", "reconstruct_pair"]
@@ -54,6 +55,7 @@ def reconstruct(
     taus2_cool: float | Sequence[float] | None = None,
     relative_static: tuple[float, float] | None = None,
     schedule: np.ndarray | None = None,
+    schedule_log_std: float = 0.0,
 ) -> Reconstruction:
     """Gas temperature at the sample instants (NaN where it cannot be formed).
 
@@ -69,9 +71,16 @@ def reconstruct(
     both sensors are taken as unit-gain, zero-offset (design.md). ``schedule`` (N,): the time
     constants in effect at sample k are the given ones times ``schedule[k]`` (they follow the
     gas flow); the smoother and the filter take it, the exact inverse does not.
+    ``schedule_log_std``: the standard deviation of the schedule's logarithm at each row (the
+    time constants' relative error, e.g. the part of a tracked schedule that follows the
+    noise): ``gas_std`` then adds, in quadrature, half the change of the gas between the
+    schedule moved by this factor up and down (all else held; the delta method, row by row).
     """
     if mode not in MODES:
         raise ValueError(f"reconstruct_pair: mode must be one of {', '.join(MODES)}, got {mode!r}")
+    if not (math.isfinite(schedule_log_std) and schedule_log_std >= 0.0):
+        raise ValueError(f"reconstruct_pair: schedule_log_std must be finite and >= 0, got "
+                         f"{schedule_log_std}")
     y = check_signals(t1, t2, ts)
     sigma = as_sigma(noise_std)
     if relative_static is not None:
@@ -109,13 +118,27 @@ def reconstruct(
         taus2_cool=cool[1],
         schedule=schedule,
     )
+    moved = None
+    if schedule is not None and schedule_log_std > 0.0:
+        factor = math.exp(schedule_log_std)
+        row = np.asarray(schedule, dtype=float)
+        moved = (row * factor, row / factor)
     if mode == "smoother":
-        return Reconstruction(fit.gas, fit.gas_std, mode, fit,
+        std = fit.gas_std
+        if moved is not None:
+            change = 0.5 * (rescheduled_gas(fit, y, moved[0]) - rescheduled_gas(fit, y, moved[1]))
+            std = np.hypot(std, change)
+        return Reconstruction(fit.gas, std, mode, fit,
                               bandwidth(fit.model, fit.background_q, fit.sigma,
                                         steps_sharp=fit.increments == "student_t"))
     gas, variance = causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
                                   schedule=schedule)
-    return Reconstruction(gas + fit.offset, np.sqrt(np.maximum(variance, 0.0)), mode, fit)
+    std = np.sqrt(np.maximum(variance, 0.0))
+    if moved is not None:
+        up, down = (causal_filter(y - fit.offset, fit.model, fit.background_q, fit.sigma,
+                                  schedule=s)[0] for s in moved)
+        std = np.hypot(std, 0.5 * (up - down))
+    return Reconstruction(gas + fit.offset, std, mode, fit)
 
 
 def reconstruct_pair(

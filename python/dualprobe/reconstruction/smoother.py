@@ -27,7 +27,7 @@ from dualprobe.reconstruction.trajectory import (
     initial_modes,
 )
 
-__all__ = ["TUNE_ROWS", "SmootherFit", "fit_smoother"]
+__all__ = ["TUNE_ROWS", "SmootherFit", "fit_smoother", "rescheduled_gas"]
 
 _JUMP_WEIGHT = 1e-2  # an interval weighted below this share of the median holds a jump
 _STEP_FRACTIONS = 41  # positions inside an interval tried for a step (every 2.5 %)
@@ -317,6 +317,23 @@ def _fit(model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarra
         steps_at_samples=_steps_at_samples(chosen.model, yc, x, lam, modes, sigma),
         gas_variance=variance[:, 0],
     )
+
+
+def rescheduled_gas(fit: SmootherFit, y: np.ndarray, schedule: np.ndarray) -> np.ndarray:
+    """The gas of ``fit`` (its stages, gas model, intensity, noise levels, weights and modes
+    held) on ``y`` (N, 2; as fitted) with the time constants on another ``schedule`` (N,):
+    how the reconstruction moves with the schedule, one banded solve."""
+    row = np.asarray(schedule, dtype=float)
+    model = fit.model
+    cool = model.taus_cool if model.hysteretic else (None, None)
+    moved = pair_model(model.taus_heat[0], model.taus_heat[1], model.ts, gas=model.gas,
+                       taus1_cool=cool[0], taus2_cool=cool[1],
+                       schedule=0.5 * (row[1:] + row[:-1]))
+    system = Trajectory(moved, y - fit.offset, np.asarray(fit.sigma, dtype=float))
+    nll, x, _ = system.evaluate(math.log(fit.q), fit.weights, fit.modes)
+    if not math.isfinite(nll):
+        raise ValueError("reconstruct_pair: the smoother failed on the moved schedule")
+    return x[:, 0] + fit.offset
 
 
 def _tuning_block(y: np.ndarray, rows: int) -> slice:
