@@ -268,8 +268,9 @@ def _assert_tracked_std_covers(result: Characterisation, rec: Recording) -> None
     assert model is not None and model.kind == "tracked"
     assert 0.0 < model.evidence["psi_noise"] < 0.05  # a lower bound on psi's error (2.7-4.5 %)
     _assert_covered_below_bandwidth(result, rec)
-    assert TRACKED_NOISE_STD_NOTE in result.summary()
-    assert TRACKED_STD_NOTE not in result.summary()
+    summary = result.summary()
+    assert TRACKED_NOISE_STD_NOTE in summary and TRACKED_STD_NOTE not in summary
+    assert f"noise moves them by {model.evidence['psi_noise']:.1%} RMS (psi_noise)" in summary
 
 
 @pytest.mark.parametrize("seed,duration,fallback", [

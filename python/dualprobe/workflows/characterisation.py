@@ -220,8 +220,11 @@ class Characterisation:
         if model is not None and model.kind != "constant":
             if model.kind == "tracked":
                 lo, hi = np.quantile(1.0 / model.psi, [0.05, 0.95])
+                noise = model.evidence.get("psi_noise", math.nan)
+                spread = (f"; noise moves them by {noise:.1%} RMS (psi_noise)"
+                          if math.isfinite(noise) else "")
                 lines.append(f"  time constants vary over the record (no flow given): "
-                             f"x{lo:.3g} to x{hi:.3g} of the average (5-95 %)")
+                             f"x{lo:.3g} to x{hi:.3g} of the average (5-95 %){spread}")
             else:
                 exponent = _fmt(model.exponent, self._std("exponent")
                                 if model.kind == "power_law" else None)
