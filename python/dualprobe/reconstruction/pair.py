@@ -31,7 +31,8 @@ MODES = ("smoother", "filter", "inverse")
 class Reconstruction:
     """The gas temperature at the sample instants (NaN where it cannot be formed), its
     standard deviation given the model (the smoother's posterior, or the causal filter's own
-    variance as the ECU computes it; NaN for the exact inverse), the mode,
+    variance as the ECU computes it, with a schedule's stated error added; NaN for the exact
+    inverse), the mode,
     the smoother's fit when one ran, and the smoother's bandwidth (what ``gas_std`` covers;
     :mod:`~dualprobe.reconstruction.resolution`)."""
 
