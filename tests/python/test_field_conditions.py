@@ -129,6 +129,7 @@ def test_mass_flow_gets_a_gas_level_term(monkeypatch: pytest.MonkeyPatch) -> Non
     assert model is not None and model.kind == "power_law"
     assert model.level_reference is not None
     assert model.level_sensitivity < 0.0  # hotter gas, faster sensors
+    assert math.isnan(model.psi_noise)  # a fitted flow law is not tracked: no even/odd split
     assert model.evidence["level_statistic"] > GAP_THRESHOLD
     doc = result.to_json_dict()
     assert doc["flow_model"]["level_sensitivity"] == model.level_sensitivity

@@ -38,7 +38,7 @@ def _characterise(rec: sim.FieldRecording) -> tuple[object, float, float, list[s
     assert result.estimate.flow_model.kind == "tracked"
     tau1, _ = result.time_constants_per_row()
     error = float(np.sqrt(np.mean((tau1 / rec.tau1 - 1.0) ** 2)))
-    noise = float(result.estimate.flow_model.evidence.get("psi_noise", np.nan))
+    noise = result.estimate.flow_model.psi_noise
     return result, error, noise, result.model_check.reasons, result.model_check.adequate
 
 

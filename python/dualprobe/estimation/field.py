@@ -69,6 +69,12 @@ class FlowModel:
     def scheduled(self) -> bool:
         return self.kind != "constant"
 
+    @property
+    def psi_noise(self) -> float:
+        """RMS of the tracked schedule's noise in log psi (the even/odd split of
+        :mod:`dualprobe.estimation.without_flow`); NaN where no split was made."""
+        return float(self.evidence.get("psi_noise", math.nan))
+
 
 def fit_of(estimate: PairEstimate) -> Fit:
     fit = estimate.details.get("fit")

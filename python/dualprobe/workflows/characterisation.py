@@ -220,7 +220,7 @@ class Characterisation:
         if model is not None and model.kind != "constant":
             if model.kind == "tracked":
                 lo, hi = np.quantile(1.0 / model.psi, [0.05, 0.95])
-                noise = model.evidence.get("psi_noise", math.nan)
+                noise = model.psi_noise
                 spread = (f"; noise moves them by {noise:.1%} RMS (psi_noise)"
                           if math.isfinite(noise) else "")
                 lines.append(f"  time constants vary over the record (no flow given): "
@@ -275,7 +275,7 @@ class Characterisation:
                 # measured on separately simulated drive cycles, the gas error below the
                 # bandwidth over T_g_std: an RMS of 0.7-1.4 tracked with psi_noise in T_g_std
                 # (unsheathed; 1.7-3.6 without it), up to 4.6 where a sheath was absorbed
-                noisy = math.isfinite(model.evidence.get("psi_noise", math.nan))
+                noisy = math.isfinite(model.psi_noise)
                 lines.append(f"  note: {TRACKED_NOISE_STD_NOTE if noisy else TRACKED_STD_NOTE}")
         if check is not None:
             lines.extend(check.summary_lines())

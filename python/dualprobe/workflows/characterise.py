@@ -306,7 +306,8 @@ def _reconstruct(
     # a tracked schedule's noise part (tracking.split_noise) is part of the gas's uncertainty:
     # the error over T_g_std (to the bandwidth) had an RMS of 1.7-3.6 without it on separately
     # simulated unsheathed tracked pairs, 0.7-1.2 with it (see the README)
-    log_std = model.evidence.get("psi_noise", 0.0) if model is not None else 0.0
+    psi_noise = model.psi_noise if model is not None else math.nan
+    log_std = psi_noise if math.isfinite(psi_noise) else 0.0
     try:
         result = reconstruct(
             t1, t2, ts,

@@ -170,7 +170,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             f"the noise, {statistic:.0f} standard deviations); the sensors may be of higher "
             "order, hysteretic, follow the flow, or see different gas temperatures")
     model = estimate.flow_model
-    psi_noise = model.evidence.get("psi_noise", math.nan) if model is not None else math.nan
+    psi_noise = model.psi_noise if model is not None else math.nan
     if psi_noise > PSI_NOISE_LIMIT:
         reasons.append(
             f"the tracked time constants are not determined by these data: tracked from the "
