@@ -97,27 +97,33 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
               ) -> tuple[PairEstimate, FlowModel]:
     """Second-order pairs (sheaths) that the first-order tracking leaves misfitting: psi from
     the joint cross-relation fit (:mod:`dualprobe.estimation.crossfit`) refined by the joint
-    MAP (:mod:`dualprobe.estimation.psi_map`), then the engine's fit on that schedule; kept
-    only when it fits better than what the first-order tracking gave."""
+    MAP (:mod:`dualprobe.estimation.psi_map`), both on block means (:func:`_block_means`) where
+    the record is over ``_SHEATHED_MAX_ROWS``, then the engine's fit on that schedule at every
+    row; kept only when it fits better than what the first-order tracking gave."""
     fit = fit_of(base)
-    if t1.size > _SHEATHED_MAX_ROWS:
+    a, b, size = _block_means(t1, t2, fit.ts)
+    ts = fit.ts * size
+    if size > 1 and ts > (1.0 + 1e-6) / _SHEATHED_RATE:  # (a resampled interval's rounding)
         return chosen
     taus = base.time_constants
     static = (fit.gain_ratio, fit.offset) if fit.static == "affine" else (1.0, 0.0)
     try:
-        cross = crossfit.fit_cross_relation(t1, t2, fit.ts, fit.tf, (taus[0][0], taus[1][0]),
-                                            static)
+        cross = crossfit.fit_cross_relation(a, b, ts, fit.tf, (taus[0][0], taus[1][0]), static)
         stages = [tuple(s for s in pair[::-1] if s > _SHEATH_FLOOR * pair[0])
                   for pair in cross.stages]
         gain, offset = cross.static
-        q = _gas_intensity(t1, fit, taus[0][0])
-        spacing = max(1, round(fit.tf / fit.ts))
-        refined = psi_map.map_psi(np.arange(t1.size) * fit.ts, t1, t2, stages[0], stages[1],
-                                  (1.0 / gain, -offset / gain), fit.sigma, q, spacing,
-                                  _PSI_STEP)
+        q = _gas_intensity(a, ts, fit.tf, taus[0][0])
+        spacing = max(1, round(fit.tf / ts))
+        # a mean of `size` rows of white noise has 1/sqrt(size) of its standard deviation
+        sigma = (fit.sigma[0] / math.sqrt(size), fit.sigma[1] / math.sqrt(size))
+        refined = psi_map.map_psi(np.arange(a.size) * ts, a, b, stages[0], stages[1],
+                                  (1.0 / gain, -offset / gain), sigma, q, spacing, _PSI_STEP)
     except (ValueError, np.linalg.LinAlgError, RuntimeError):
         return chosen
-    psi = refined.psi / math.exp(float(np.mean(np.log(refined.psi))))
+    # each block's psi at the block's centre, linear between them onto every row
+    centres = (np.arange(a.size) * size + 0.5 * (size - 1)) * fit.ts
+    log_psi = np.interp(np.arange(t1.size) * fit.ts, centres, np.log(refined.psi))
+    psi = np.exp(log_psi - float(np.mean(log_psi)))
     if not np.all(np.isfinite(psi)):
         return chosen
     lo, hi = np.quantile(psi, [0.05, 0.95])
@@ -133,11 +139,25 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         return chosen
     stats = {**stats, "misfit_tracked": fit_of(estimate).misfit, "tracking_statistic": statistic,
              "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(spacing),
-             "sheathed_path": 1.0}
+             "sheathed_path": 1.0, "sheathed_block_rows": float(size)}
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 
-def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
+def _block_means(t1: np.ndarray, t2: np.ndarray, ts: float
+                 ) -> tuple[np.ndarray, np.ndarray, int]:
+    """Both sensors as means of blocks of ``size`` rows: the fewest that bring a record over
+    ``_SHEATHED_MAX_ROWS`` within it (``size`` 1: the rows themselves, the usual case). A mean
+    over a block is a filter common to both sensors, so it cancels from the cross-relation and
+    the MAP takes it for part of the gas; the rows left over at the end are dropped."""
+    size = max(1, math.ceil(t1.size / _SHEATHED_MAX_ROWS))
+    if size == 1:
+        return t1, t2, 1
+    rows = (t1.size // size) * size
+    return (t1[:rows].reshape(-1, size).mean(axis=1), t2[:rows].reshape(-1, size).mean(axis=1),
+            size)
+
+
+def _gas_intensity(t1: np.ndarray, ts: float, tf: float, tau: float) -> float:
     """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`: ``_GAS_SAFETY``
     times the increments of sensor 1's first-order inverse (:func:`level.gas_level` at the
     constant fit's time constant; about 0.7 of the oracle's q on drive cycles). Given the TRUE
@@ -145,8 +165,8 @@ def _gas_intensity(t1: np.ndarray, fit: Fit, tau: float) -> float:
     2.27x, 1.33x with 100 times it), but with the estimated stages psi then absorbs their
     errors (a drive cycle at 2.30x went to 3.32x with 100 times), so the factor stays at 4 (the
     sweeps in the README); a tenth of the oracle's q was worse in both (1.25x -> 1.43x)."""
-    gas = level.gas_level(t1, np.full(t1.size, tau), fit.ts, fit.tf)
-    return max(_GAS_SAFETY * float(np.mean(np.diff(gas) ** 2)) / fit.ts, 1e-6)
+    gas = level.gas_level(t1, np.full(t1.size, tau), ts, tf)
+    return max(_GAS_SAFETY * float(np.mean(np.diff(gas) ** 2)) / ts, 1e-6)
 
 
 # A constant model that misfits by less than this (its residual within twice the noise) is a
@@ -158,8 +178,11 @@ _TRACKING_MISFIT = 4.0
 
 # The sheathed path (_sheathed): its joint MAP solves a sparse system of up to 5 states per row
 # (a 30 min, 10 Hz record: 18 000 rows, 3-6 s; the whole characterisation 15-28 s and 281 MB
-# peak); it grows about linearly, so longer records keep the first-order tracking's result.
+# peak); it grows about linearly, so longer records run it on block means (_block_means; on
+# 20 min at 50 Hz, blocks to 10 Hz were 1.6-2x faster but up to 1.2x further from the oracle
+# than all rows, so records within the limit use every row).
 _SHEATHED_MAX_ROWS = 60_000
+_SHEATHED_RATE = 10.0  # Hz: block means slower than this would blur the sheaths (0.1-0.8 s)
 _SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
 _PSI_STEP = 0.05  # prior sd of log psi from knot to knot (one knot per tf)
 _GAS_SAFETY = 4.0  # see _gas_intensity
