@@ -64,6 +64,9 @@ PIPELINE_CASES = (
     # no flow column, a sheathed fast sensor: the sheathed path (crossfit + psi_map)
     PipelineCase("30 min at 10 Hz, tracked, sheath 0.7 s", 1800.0, 10.0, 0.5, False,
                  sheaths=(0.7, 0.0)),
+    # the same at 50 Hz: 90,000 rows, over the sheathed path's limit, so on block means
+    PipelineCase("30 min at 50 Hz, tracked, sheath 0.7 s", 1800.0, 50.0, 0.5, False,
+                 sheaths=(0.7, 0.0)),
 )
 
 
