@@ -34,7 +34,8 @@ from scipy import ndimage
 
 from dualprobe.models.noise import MAD_TO_STD
 
-__all__ = ["MAX_RUN", "MAX_SHARE", "SPIKE_SCALES", "Spikes", "despike", "find_spikes"]
+__all__ = ["MAX_RUN", "MAX_SHARE", "SPIKE_SCALES", "Spikes", "despike", "find_spikes",
+           "thresholds"]
 
 MAX_RUN = 3  # rows: a spike or dropout; longer excursions are left to the model check
 # robust scales: the departure of Gaussian noise and curvature beyond 12 MAD-sigmas has a
@@ -60,7 +61,7 @@ class Spikes:
         return int(self.starts.size)
 
 
-def _thresholds(x: np.ndarray) -> np.ndarray:
+def thresholds(x: np.ndarray) -> np.ndarray:
     """Per row: ``SPIKE_SCALES`` times the local robust scale of the rows' departure from
     their neighbours' mean (a running median over ``WINDOW`` rows: a drive cycle's curvature
     at idle and under load differ by orders of magnitude, and one scale for the record took
@@ -89,7 +90,7 @@ def find_spikes(x: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     n = x.size
     if n < MAX_RUN + 4:
         return np.zeros(0, np.intp), np.zeros(0, np.intp), 0.0
-    limits = _thresholds(x)
+    limits = thresholds(x)
     threshold = float(np.median(limits))
     if not np.any(limits > 0.0):
         return np.zeros(0, np.intp), np.zeros(0, np.intp), threshold

@@ -1,0 +1,116 @@
+"""A channel stuck on one value: an open circuit read as 0 or full scale, a logger repeating
+the last frame of a channel it lost, a frozen conversion.
+
+A lagging sensor moves towards the gas on every row; its reading can repeat exactly only where
+the gas is still (within an ADC step), or for a logger's refresh (:mod:`dualprobe.models.held`).
+A longer stretch of one repeated value is a fault, and no model fits it: a 60 s stretch at
+0 K in a 10 min drive cycle was refused as "fitted dynamics oscillate ... give --flow, or try
+--order 1", a 30 s frozen channel as "no positive real time constants fit these signals ...",
+which send a test engineer after the model instead of the channel.
+
+A run of ``MIN_ROWS`` or more exactly equal readings (shorter ones are spikes,
+:mod:`dualprobe.models.spikes`) is such a fault (:func:`find_stuck`) when
+
+* it is a **dropout**: the steps into it and out of it both exceed the spike threshold
+  (12 local robust scales, at least 12 ADC steps) in opposite directions: the reading left the
+  record's course and came back (not on a held sensor, whose refresh steps are no such
+  evidence); or
+* it is **frozen while the gas moves**: longer than a logger's refresh (``MAX_REFRESH``), and
+  no first-order sensor of up to a third of the record's duration (the slowest the
+  characterisation accepts) can have stayed there. A sensor that reads c over the run has
+  ``tau (x(t) - c) = int_0^t (gas - x) ds ~ int_0^t (gas - c) ds``, so it stays within a band
+  only if that integral does. The other sensor stands for the gas up to its own gain, lag and
+  offset: the offset is free (the smallest over constants b of the largest
+  ``|int_0^t (other - b) ds|``), and the gain and lag only shrink the integral's swing. The
+  run is frozen when that bound over the slowest time constant exceeds ``FROZEN_STEPS`` ADC
+  steps (at least ``FROZEN_FLOOR``), where a sensor at rest reads within half a step.
+  (From rest at the other sensor's reading instead, 19 of 360 legitimate drive cycles were
+  flagged: a slow sensor at its turning point reads one 0.5 K step for 8-80 s.)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import optimize
+
+from dualprobe.models.held import MAX_REFRESH
+from dualprobe.models.spikes import MAX_RUN, thresholds
+
+__all__ = ["FROZEN_FLOOR", "FROZEN_STEPS", "MIN_ROWS", "Stuck", "find_stuck"]
+
+MIN_ROWS = MAX_RUN + 1  # shorter runs are the spike rule's
+# ADC steps a frozen run must have missed: a sensor at rest flickers by one step at most, and
+# three keep a slow sensor's last step before the run (the proxy is only the other sensor's
+# reading, with its own lag and gain) well inside
+FROZEN_STEPS = 3.0
+FROZEN_FLOOR = 0.1  # K: unquantised readings; far above any RTD's noise in a mean of rows
+_SLOWEST = 1.0 / 3.0  # of the record's duration: the longest time constant accepted
+
+
+@dataclass(frozen=True)
+class Stuck:
+    """A stuck run: rows ``start`` .. ``start + rows - 1`` read ``value``; ``kind``
+    "dropout" or "frozen"; ``movement`` (K) what the other sensor drove the slowest accepted
+    sensor by within it (frozen), or the smaller of the steps into and out of it (dropout)."""
+
+    start: int
+    rows: int
+    value: float
+    kind: str
+    movement: float
+
+
+def _runs(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(starts, lengths) of the runs of exactly equal consecutive readings of MIN_ROWS+."""
+    change = np.flatnonzero(np.diff(x) != 0.0) + 1
+    starts = np.concatenate(([0], change))
+    lengths = np.diff(np.concatenate((starts, [x.size])))
+    keep = lengths >= MIN_ROWS
+    return starts[keep], lengths[keep]
+
+
+def _swing(u: np.ndarray, ts: float) -> float:
+    """min over b of max over t of |int_0^t (u - b) ds| (K s; trapezoids; convex in b)."""
+    integral = np.concatenate(([0.0], np.cumsum(0.5 * (u[1:] + u[:-1])) * ts))
+    elapsed = np.arange(u.size) * ts
+    lo, hi = float(np.min(u)), float(np.max(u))
+    if hi <= lo:
+        return 0.0
+    best = optimize.minimize_scalar(lambda b: float(np.max(np.abs(integral - b * elapsed))),
+                                    bounds=(lo, hi), method="bounded",
+                                    options={"xatol": 1e-9 * (hi - lo)})
+    return float(best.fun)
+
+
+def find_stuck(x: np.ndarray, other: np.ndarray, ts: float, held: bool) -> list[Stuck]:
+    """The stuck runs of ``x`` (module docstring), longest first; ``other`` the pair's other
+    sensor on the same rows; ``held`` when ``x`` is a held sensor (no dropout test)."""
+    x = np.asarray(x, dtype=float)
+    other = np.asarray(other, dtype=float)
+    starts, lengths = _runs(x)
+    if not starts.size:
+        return []
+    steps = np.abs(np.diff(x))
+    moving = steps[steps > 0.0]
+    adc = float(np.min(moving)) if moving.size else 0.0
+    limit = max(FROZEN_STEPS * adc, FROZEN_FLOOR)
+    tau = _SLOWEST * x.size * ts
+    limits = thresholds(x) if x.size > MAX_RUN + 4 else np.full(x.size, np.inf)
+    found: list[Stuck] = []
+    for start, length in zip(starts.tolist(), lengths.tolist(), strict=True):
+        end = start + length  # first row after the run
+        if not held and start > 0 and end < x.size:
+            into, out = x[start] - x[start - 1], x[end] - x[end - 1]
+            bound = limits[start - 1]
+            if into * out < 0.0 and min(abs(into), abs(out)) > bound:
+                found.append(Stuck(start, length, float(x[start]), "dropout",
+                                   float(min(abs(into), abs(out)))))
+                continue
+        if length * ts <= MAX_REFRESH:
+            continue
+        movement = _swing(other[start:end], ts) / tau
+        if movement > limit:
+            found.append(Stuck(start, length, float(x[start]), "frozen", movement))
+    return sorted(found, key=lambda s: -s.rows)
