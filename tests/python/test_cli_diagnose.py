@@ -394,3 +394,20 @@ def test_an_output_in_other_units_exits_3(
     line = _one_error_line(capsys)
     assert status == 3
     assert f"static gain of {shown}" in line and "different units" in line
+
+
+def test_a_sensor_that_drops_out_for_a_stretch_exits_2_naming_it(
+    recording: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """An open circuit for 30 s of the sensor (read as 0): refused as input by name with the
+    stretch to keep (models/stuck.py), not diagnosed as a missing effect of the model."""
+    data = np.genfromtxt(recording, delimiter=",", names=True)
+    measured = data["T_m"].copy()
+    measured[3000:3300] = 0.0
+    path = _write_csv(tmp_path / "dropout.csv",
+                      {"t": data["t"], "T_ref": data["T_ref"], "T_m": measured})
+    status = main(["diagnose", str(path), "--input", "T_ref", "--output", "T_m"])
+    assert status == 2
+    line = _one_error_line(capsys)
+    assert "T_m reads exactly 0 on 300 rows from t = 300 to 329.9 s" in line
+    assert "--window 330:900 " in line

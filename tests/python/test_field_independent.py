@@ -13,6 +13,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from dualprobe.estimation.engine import Fit
 from dualprobe.io import EstimationError
+from dualprobe.models.held import held_share
 from dualprobe.workflows import characterise as characterise_module
 from dualprobe.workflows import readings as readings_module
 from dualprobe.workflows.characterisation import (
@@ -21,7 +22,6 @@ from dualprobe.workflows.characterisation import (
     Characterisation,
 )
 from dualprobe.workflows.characterise import characterise_arrays
-from dualprobe.workflows.checks import held_share
 from field_independent import Recording, record
 from field_oracle import oracle
 

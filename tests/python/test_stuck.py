@@ -31,11 +31,11 @@ def test_an_open_circuit_is_a_dropout_and_a_frozen_channel_is_frozen() -> None:
     rows = rec.t.size
     dropout = rec.t1.copy()
     dropout[2000:2600] = 0.0  # 60 s of an open circuit read as 0
-    runs = find_stuck(dropout, rec.t2, rec.ts, held=False)
+    runs = find_stuck(dropout, rec.t2, rec.ts)
     assert [(r.kind, r.start, r.rows, r.value) for r in runs] == [("dropout", 2000, 600, 0.0)]
     frozen = rec.t2.copy()
     frozen[3000:] = frozen[3000]  # the logger repeats the last frame of a lost channel
-    runs = find_stuck(frozen, rec.t1, rec.ts, held=False)
+    runs = find_stuck(frozen, rec.t1, rec.ts)
     assert [(r.kind, r.start, r.rows) for r in runs] == [("frozen", 3000, rows - 3000)]
     # a slow sensor of a third of the record's duration would have moved by this much: well
     # beyond the 3 ADC steps (0.06 K) and the 0.1 K floor
@@ -59,7 +59,7 @@ def test_legitimate_flat_stretches_are_not_stuck(seed: int, rate: float, adc: fl
                                   sim.FieldSensor(22.0, 0.5, noise_std=noise),
                                   sample_rate=rate, quantisation=adc, hold=hold, rng=rng)
     for x, y in ((rec.t1, rec.t2), (rec.t2, rec.t1)):
-        assert find_stuck(x, y, rec.ts, held=hold > 1) == []
+        assert find_stuck(x, y, rec.ts) == []
 
 
 @pytest.mark.parametrize("seed,kw", [(3, dict(rate=2.0, adc=0.1, hold=4)),
@@ -68,9 +68,8 @@ def test_the_separate_generator_has_no_stuck_channels(seed: int, kw: dict[str, f
     """A sweep of 432 such records (and 360 of the project's drive cycles at 1-100 Hz with
     0-0.5 K converters, 144 laboratory step records with plateaus, 14.6 M rows) found none."""
     rec = record(seed, duration=600.0, **kw)  # type: ignore[arg-type]
-    held = kw.get("hold", 1) > 1
-    assert find_stuck(rec.t2, rec.t1, rec.ts, held=held) == []
-    assert find_stuck(rec.t1, rec.t2, rec.ts, held=False) == []
+    assert find_stuck(rec.t2, rec.t1, rec.ts) == []
+    assert find_stuck(rec.t1, rec.t2, rec.ts) == []
 
 
 def test_the_command_line_names_the_stuck_channel_and_the_stretch_to_keep(

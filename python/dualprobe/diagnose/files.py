@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dualprobe.diagnose.result import Diagnosis
 from dualprobe.diagnose.search import MIN_SAMPLES, diagnose
 from dualprobe.io import InputError, load_recording
+from dualprobe.models.stuck import refuse_stuck
 from dualprobe.report.json import write_json as write_json_document
 
 __all__ = [
@@ -48,6 +49,10 @@ def diagnose_file(
                                missing=missing)
     recording.require_contiguous("diagnose")
     columns = recording.columns
+    # the sensor only: a reference may be a setpoint, flat on its plateaus and stepping
+    # between them, which the sensor follows (models/stuck.py's rules are for a lagging sensor)
+    refuse_stuck([(output_column, columns[output_column], input_column,
+                   columns[input_column])], recording.sample_interval, recording.t)
     try:
         result = diagnose(
             columns[input_column],

@@ -8,6 +8,8 @@ sensor's smooth reading); the one implementation for the flow column
 (:mod:`dualprobe.estimation.flow_timing`) and the sensors' readings
 (:mod:`dualprobe.workflows.characterise`). :func:`held_noise_std` is the white-equivalent noise
 of such an interpolated sensor: each refresh is one reading, carried over k rows.
+:func:`held_share` measures an irregular hold (exact repeats where the reading moves), which
+the model check names; :func:`is_held` says whether a channel is held either way.
 """
 
 from __future__ import annotations
@@ -19,11 +21,16 @@ import scipy.interpolate
 
 from dualprobe.models.noise import estimate_noise_std, quantisation_floor
 
-__all__ = ["MAX_REFRESH", "held_noise_std", "unhold"]
+__all__ = ["HELD_SHARE", "MAX_REFRESH", "held_noise_std", "held_share", "is_held",
+           "unhold"]
 
 _REGULAR_SHARE = 0.8  # share of runs within one row of the modal length for a refresh pattern
 _GRID_SHARE = 0.9  # share of the changes on one row of every k for a refresh grid
 MAX_REFRESH = 2.0  # s: the slowest logger refresh taken as a hold (rasters: 10 ms - 1 s)
+# Held readings: above this share of exact repeats among the moving rows. A hold of k rows
+# repeats (k-1)/k of them (50 % for two); ADC steps with noise, none (0 % on drive cycles with
+# 0.02-0.1 K steps at 2-50 Hz).
+HELD_SHARE = 0.1
 
 
 def _refreshes(v: np.ndarray, ts: float) -> tuple[np.ndarray, int]:
@@ -88,3 +95,29 @@ def held_noise_std(values: np.ndarray, ts: float, order: int) -> float:
     # never below the readings' rounding (q / sqrt(12)): noise-free quantised refreshes can
     # show no noise in their differences, and a level of 0 is no sensor's
     return max(estimate_noise_std(v[points], order), quantisation_floor(v)) * math.sqrt(k)
+
+
+def held_share(x: np.ndarray) -> float:
+    """Share of the moving rows whose reading repeats the previous one exactly: a logger that
+    holds readings (refreshes slower than the rows). Moving rows: the change over two rows is
+    in the upper half of the record's and above 4 times the smallest nonzero step (ADC steps
+    and noise alone give no exact repeat inside such a change); NaN when too few move."""
+    x = np.asarray(x, dtype=float)
+    if x.size < 8:
+        return math.nan
+    step = np.abs(np.diff(x))
+    nonzero = step[step > 0.0]
+    if nonzero.size == 0:
+        return math.nan
+    span = np.abs(x[2:] - x[:-2])
+    moving = (span > np.median(span)) & (span > 4.0 * float(np.min(nonzero)))
+    if np.count_nonzero(moving) < 20:
+        return math.nan
+    return float(np.mean(step[:-1][moving] == 0.0))
+
+
+def is_held(values: np.ndarray, ts: float) -> bool:
+    """A logger holds these readings: a regular refresh (:func:`unhold` interpolates it) or an
+    irregular one (exact repeats on over ``HELD_SHARE`` of the moving rows: :func:`held_share`)."""
+    v = np.asarray(values, dtype=float)
+    return _refreshes(v, ts)[1] > 1 or held_share(v) > HELD_SHARE

@@ -30,15 +30,18 @@ A run of ``MIN_ROWS`` or more exactly equal readings (shorter ones are spikes,
 
 from __future__ import annotations
 
+import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import optimize
 
-from dualprobe.models.held import MAX_REFRESH
+from dualprobe.io.errors import InputError
+from dualprobe.models.held import MAX_REFRESH, is_held
 from dualprobe.models.spikes import MAX_RUN, thresholds
 
-__all__ = ["FROZEN_FLOOR", "FROZEN_STEPS", "MIN_ROWS", "Stuck", "find_stuck"]
+__all__ = ["FROZEN_FLOOR", "FROZEN_STEPS", "MIN_ROWS", "Stuck", "find_stuck", "refuse_stuck"]
 
 MIN_ROWS = MAX_RUN + 1  # shorter runs are the spike rule's
 # ADC steps a frozen run must have missed: a sensor at rest flickers by one step at most, and
@@ -63,11 +66,13 @@ class Stuck:
 
 
 def _runs(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(starts, lengths) of the runs of exactly equal consecutive readings of MIN_ROWS+."""
+    """(starts, lengths) of the runs of exactly equal consecutive readings of MIN_ROWS+, but
+    not one over every row: a constant channel is no stretch to leave out (the callers name
+    it: no excitation, or a sensor that does not follow its input)."""
     change = np.flatnonzero(np.diff(x) != 0.0) + 1
     starts = np.concatenate(([0], change))
     lengths = np.diff(np.concatenate((starts, [x.size])))
-    keep = lengths >= MIN_ROWS
+    keep = (lengths >= MIN_ROWS) & (lengths < x.size)
     return starts[keep], lengths[keep]
 
 
@@ -84,9 +89,9 @@ def _swing(u: np.ndarray, ts: float) -> float:
     return float(best.fun)
 
 
-def find_stuck(x: np.ndarray, other: np.ndarray, ts: float, held: bool) -> list[Stuck]:
+def find_stuck(x: np.ndarray, other: np.ndarray, ts: float) -> list[Stuck]:
     """The stuck runs of ``x`` (module docstring), longest first; ``other`` the pair's other
-    sensor on the same rows; ``held`` when ``x`` is a held sensor (no dropout test)."""
+    sensor on the same rows. No dropout test on a held sensor (:func:`is_held`)."""
     x = np.asarray(x, dtype=float)
     other = np.asarray(other, dtype=float)
     starts, lengths = _runs(x)
@@ -98,6 +103,7 @@ def find_stuck(x: np.ndarray, other: np.ndarray, ts: float, held: bool) -> list[
     limit = max(FROZEN_STEPS * adc, FROZEN_FLOOR)
     tau = _SLOWEST * x.size * ts
     limits = thresholds(x) if x.size > MAX_RUN + 4 else np.full(x.size, np.inf)
+    held = is_held(x, ts)
     found: list[Stuck] = []
     for start, length in zip(starts.tolist(), lengths.tolist(), strict=True):
         end = start + length  # first row after the run
@@ -114,3 +120,40 @@ def find_stuck(x: np.ndarray, other: np.ndarray, ts: float, held: bool) -> list[
         if movement > limit:
             found.append(Stuck(start, length, float(x[start]), "frozen", movement))
     return sorted(found, key=lambda s: -s.rows)
+
+
+def refuse_stuck(channels: Sequence[tuple[str, np.ndarray, str, np.ndarray]], ts: float,
+                 time: np.ndarray) -> None:
+    """An :class:`InputError` (one line) naming the longest stuck run of the ``channels``,
+    each ``(column, readings, other column, other readings)`` (the other a sensor or reference
+    on the same rows), and the longest stretch free of every one, as a ``--window`` of
+    ``time``; nothing if none."""
+    runs = [(column, run) for column, x, _, other in channels
+            for run in find_stuck(x, other, ts)]
+    if not runs:
+        return
+    others = {column: other for column, _, other, _ in channels}
+    column, run = max(runs, key=lambda item: item[1].rows)
+    first, last = float(time[run.start]), float(time[run.start + run.rows - 1])
+    if run.kind == "dropout":
+        why = (f"jumping {run.movement:.3g} K or more into it and out of it, which no lagging "
+               "sensor can do (an open circuit, a lost channel)")
+    else:
+        why = (f"while {others[column]} moves so that even a sensor with a time constant of "
+               f"a third of the record would have moved {run.movement:.3g} K (a frozen "
+               "channel or logger)")
+    bounds = sorted({0, time.size} | {r.start for _, r in runs}
+                    | {r.start + r.rows for _, r in runs})
+    covered = [(r.start, r.start + r.rows) for _, r in runs]
+    free = [(a, b) for a, b in itertools.pairwise(bounds)
+            if not any(s <= a and b <= e for s, e in covered)]
+    more = f" ({len(runs) - 1} more such stretch{'es' if len(runs) > 2 else ''})" \
+        if len(runs) > 1 else ""
+    hint = "leave it out"
+    if free:
+        a, b = max(free, key=lambda span: span[1] - span[0])
+        hint = (f"leave it out with --window {float(time[a]):.10g}:{float(time[b - 1]):.10g} "
+                f"(the longest stretch without it, {float(time[b - 1] - time[a]):.6g} s)")
+    raise InputError(
+        f"{column} reads exactly {run.value:.6g} on {run.rows} rows from t = {first:.6g} to "
+        f"{last:.6g} s{more}, {why}: {hint}, or mend the channel")

@@ -46,10 +46,11 @@ from dualprobe.estimation.confidence import RELATIVE_LIMIT
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
+from dualprobe.models.held import HELD_SHARE, held_share
 
-__all__ = ["HELD_SHARE", "MISFIT_LIMIT", "PSI_NOISE_LIMIT", "ModelCheck", "check_model",
+__all__ = ["MISFIT_LIMIT", "PSI_NOISE_LIMIT", "ModelCheck", "check_model",
            "describe_stages",
-           "held_share", "refuse_implausible", "refuse_opposed", "refuse_undetermined",
+           "refuse_implausible", "refuse_opposed", "refuse_undetermined",
            "spurious_shared_stage",
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
@@ -61,10 +62,6 @@ MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured 
 # departed 6.7 times (for 1.8 allowed) was 90 K off the truth. Three times covers the measured
 # spread with margin.
 LAG_MARGIN = 3.0
-# Held readings: above this share of exact repeats among the moving rows. A hold of k rows
-# repeats (k-1)/k of them (50 % for two); ADC steps with noise, none (0 % on drive cycles with
-# 0.02-0.1 K steps at 2-50 Hz).
-HELD_SHARE = 0.1
 # A first-order tracked schedule (no flow column) whose noise part alone moves the per-row time
 # constants by more than this, RMS: ``psi_noise`` (tracking.split_noise: the even and odd rows
 # tracked apart), a lower bound on psi's error. Measured on drive cycles (2-50 Hz): 0.013-0.024
@@ -125,25 +122,6 @@ def _misfit(estimate: PairEstimate) -> tuple[float, float]:
     n_eff = float(details.get("effective_samples", math.nan))  # type: ignore[arg-type]
     statistic = (mu - 1.0) * math.sqrt(n_eff / 2.0) if math.isfinite(mu * n_eff) else math.nan
     return mu, statistic
-
-
-def held_share(x: np.ndarray) -> float:
-    """Share of the moving rows whose reading repeats the previous one exactly: a logger that
-    holds readings (refreshes slower than the rows). Moving rows: the change over two rows is
-    in the upper half of the record's and above 4 times the smallest nonzero step (ADC steps
-    and noise alone give no exact repeat inside such a change); NaN when too few move."""
-    x = np.asarray(x, dtype=float)
-    if x.size < 8:
-        return math.nan
-    step = np.abs(np.diff(x))
-    nonzero = step[step > 0.0]
-    if nonzero.size == 0:
-        return math.nan
-    span = np.abs(x[2:] - x[:-2])
-    moving = (span > np.median(span)) & (span > 4.0 * float(np.min(nonzero)))
-    if np.count_nonzero(moving) < 20:
-        return math.nan
-    return float(np.mean(step[:-1][moving] == 0.0))
 
 
 def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,

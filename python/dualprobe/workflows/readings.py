@@ -5,17 +5,14 @@ a note."""
 
 from __future__ import annotations
 
-import itertools
 import math
 
 import numpy as np
 
-from dualprobe.io.errors import InputError
-from dualprobe.models.held import held_noise_std, unhold
+from dualprobe.models.held import HELD_SHARE, held_noise_std, held_share, unhold
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
-from dualprobe.models.stuck import Stuck, find_stuck
-from dualprobe.workflows.checks import HELD_SHARE, held_share
+from dualprobe.models.stuck import refuse_stuck
 
 __all__ = ["prepare_readings"]
 
@@ -34,35 +31,6 @@ def _spike_note(column: str, spikes: Spikes, time: np.ndarray) -> str:
         return what + ": replaced by straight lines between their neighbours"
     return (what + f": over {MAX_SHARE:.0%} of the rows, so the rule may not fit this sensor; "
             "left as they are")
-
-
-def _refuse_stuck(runs: list[tuple[str, Stuck]], others: dict[str, str], time: np.ndarray,
-                  ) -> None:
-    """One line naming the longest stuck run, and the longest stretch free of every one."""
-    column, run = max(runs, key=lambda item: item[1].rows)
-    first, last = float(time[run.start]), float(time[run.start + run.rows - 1])
-    if run.kind == "dropout":
-        why = (f"jumping {run.movement:.3g} K or more into it and out of it, which no lagging "
-               "sensor can do (an open circuit, a lost channel)")
-    else:
-        why = (f"while {others[column]} moves so that even a sensor with a time constant of "
-               f"a third of the record would have moved {run.movement:.3g} K (a frozen "
-               "channel or logger)")
-    bounds = sorted({0, time.size} | {r.start for _, r in runs}
-                    | {r.start + r.rows for _, r in runs})
-    covered = [(r.start, r.start + r.rows) for _, r in runs]
-    free = [(a, b) for a, b in itertools.pairwise(bounds)
-            if not any(s <= a and b <= e for s, e in covered)]
-    more = f" ({len(runs) - 1} more such stretch{'es' if len(runs) > 2 else ''})" \
-        if len(runs) > 1 else ""
-    hint = "leave it out"
-    if free:
-        a, b = max(free, key=lambda span: span[1] - span[0])
-        hint = (f"leave it out with --window {float(time[a]):.10g}:{float(time[b - 1]):.10g} "
-                f"(the longest stretch without it, {float(time[b - 1] - time[a]):.6g} s)")
-    raise InputError(
-        f"{column} reads exactly {run.value:.6g} on {run.rows} rows from t = {first:.6g} to "
-        f"{last:.6g} s{more}, {why}: {hint}, or mend the channel")
 
 
 def prepare_readings(
@@ -87,11 +55,8 @@ def prepare_readings(
     stamps = (np.asarray(time, dtype=float) if time is not None and np.shape(time) == t1.shape
               else np.arange(t1.size) * ts)
     held = [unhold(x, ts, smooth=True) for x in (t1, t2)]
-    stuck = [(column, run) for x, y, (_, rows), column in
-             zip((t1, t2), (t2, t1), held, columns, strict=True)
-             for run in find_stuck(x, y, ts, rows > 1 or held_share(x) > HELD_SHARE)]
-    if stuck:
-        _refuse_stuck(stuck, {columns[0]: columns[1], columns[1]: columns[0]}, stamps)
+    refuse_stuck([(columns[0], t1, columns[1], t2), (columns[1], t2, columns[0], t1)], ts,
+                 stamps)
     values, notes = [], []
     for (x, rows), column in zip(held, columns, strict=True):
         if rows == 1 and not held_share(x) > HELD_SHARE:
