@@ -214,6 +214,23 @@ def test_flow_without_flow_dependence_reports_constant() -> None:
     np.testing.assert_allclose(result.estimate.time_constants[1][0], 8.0, rtol=0.03)
 
 
+def test_a_flow_column_that_explains_nothing_is_named_in_the_warning() -> None:
+    """A flow channel frozen after the first tenth of a drive cycle: no law fits, the model is
+    constant and misfits, and the warning says the column showed no dependence instead of
+    suggesting that the time constants follow the flow."""
+    rec = _record(CASES[3])
+    tenth = rec.t.size // 10
+    flow = np.where(np.arange(rec.t.size) < tenth, rec.flow, rec.flow[tenth])
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=flow,
+                                 flow_column="mdot", reconstruction=None)
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "constant"
+    check = result.model_check
+    assert check is not None and not check.adequate
+    assert any("no measurable dependence on the flow column 'mdot'" in reason
+               for reason in check.reasons), check.reasons
+
+
 def test_flow_dependence_is_not_reported_as_hysteresis() -> None:
     """The gas heats at high load (high flow: short time constants) and cools at low load;
     without the flow that looks like hysteresis, with it it must not."""

@@ -141,13 +141,22 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
                 "the previous value exactly (a logger refreshing slower than the rows); the "
                 "model has no such delay and the time constants absorb it: use the logger's "
                 "own rate, or the rows where the reading changes")
+    model = estimate.flow_model
     if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
+        why = ("the sensors may be of higher order, hysteretic, follow the flow, or see "
+               "different gas temperatures")
+        if model is not None and model.column is not None and model.kind == "constant":
+            # "follow the flow" beside a flow column given: say the column showed none of it
+            # (a channel frozen for half a drive cycle: misfit 6610, reported constant)
+            why = (f"the time constants show no measurable dependence on the flow column "
+                   f"{model.column!r}: check that it is the exhaust flow at the sensors (not "
+                   "frozen, not another quantity), or leave --flow out to track them; the "
+                   "sensors may also be of higher order, hysteretic, or see different gas "
+                   "temperatures")
         reasons.append(
             f"the identified model does not explain the data: the two sensors' reconstructions "
             f"disagree by {math.sqrt(mu):.3g} times what their noise allows (misfit {mu:.3g} x "
-            f"the noise, {statistic:.0f} standard deviations); the sensors may be of higher "
-            "order, hysteretic, follow the flow, or see different gas temperatures")
-    model = estimate.flow_model
+            f"the noise, {statistic:.0f} standard deviations); {why}")
     psi_noise = model.psi_noise if model is not None else math.nan
     if psi_noise > PSI_NOISE_LIMIT:
         reasons.append(
