@@ -232,3 +232,30 @@ def test_missing_readings_are_bridged_and_a_missing_flow_is_refused(
     assert status == 2 and captured.out == ""
     assert captured.err.strip().count("\n") == 0
     assert "line 301, column 'mdot': missing reading" in captured.err
+
+
+def test_the_static_map_between_the_sensors_is_printed(
+        drive_csv: tuple[Path, sim.FieldRecording], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """The affine map between the sensors' scales was only in the JSON: a second sensor logged
+    in degF beside one in degC was characterised "ok" with nothing said."""
+    path, rec = drive_csv
+    mixed = tmp_path / "mixed.csv"
+    celsius = rec.t1 - 273.15
+    write_columns(mixed, {"t": rec.t, "T_m1": celsius, "T_m2": (rec.t2 - 273.15) * 1.8 + 32.0,
+                          "mdot": rec.flow})
+    status = main(["characterise", str(mixed), "--flow", "mdot", "--json",
+                   str(tmp_path / "m.json")])
+    out = capsys.readouterr().out
+    assert status == 0, out
+    static = json.loads((tmp_path / "m.json").read_text())["static_model"]
+    assert static["kind"] == "affine"
+    # T_m1 = T_m2 / 1.8 - 32 / 1.8: 5e-5 and 0.02 K are about its standard uncertainties
+    assert static["gain_ratio"] == pytest.approx(1.0 / 1.8, abs=3e-4)
+    assert static["offset"] == pytest.approx(-32.0 / 1.8, abs=0.15)
+    line = next(text for text in out.splitlines() if "static map:" in text)
+    assert line.startswith("  static map: T_m1 = 0.555") and "x T_m2 - 17.7" in line
+    assert line.endswith("columns in different units?")
+    # equal scales: unit gains, no line
+    status = main(["characterise", str(path), "--flow", "mdot"])
+    assert status == 0 and "static map" not in capsys.readouterr().out

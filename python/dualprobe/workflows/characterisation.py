@@ -36,6 +36,10 @@ def _fmt(value: float, std: float | None = None) -> str:
     return f"{value:.{decimals}f} ± {std:.{decimals}f}"
 
 
+_UNIT_GAIN = 0.2  # of a gain ratio off 1: see Characterisation._static_line
+_UNIT_OFFSET = 100.0  # K, ditto
+
+
 @dataclass(frozen=True)
 class Characterisation:
     """Result of characterising one recording of a sensor pair."""
@@ -68,6 +72,21 @@ class Characterisation:
     def _std(self, name: str) -> float | None:
         conf = self.estimate.confidence
         return None if conf is None else conf.std.get(name)
+
+    def _static_line(self) -> str:
+        """The affine map between the sensors' scales (the JSON's ``static_model``)."""
+        gain = float(self.estimate.details.get("gain_ratio", 1.0))
+        offset = float(self.estimate.details.get("offset", 0.0))
+        first, second = self.columns
+        sign = "-" if offset < 0.0 else "+"
+        text = (f"  static map: {first} = {_fmt(gain, self._std('gain_ratio'))} x {second} "
+                f"{sign} {_fmt(abs(offset), self._std('offset'))} (the reconstruction is in "
+                f"{first}'s scale)")
+        # sensors' own gains differ by a few per cent and offsets by a few K; beyond this the
+        # columns are more likely in different units (K and degC: 273.15; degF: 1.8)
+        if abs(gain - 1.0) > _UNIT_GAIN or abs(offset) > _UNIT_OFFSET:
+            text += "; columns in different units?"
+        return text
 
     def _sensor(self, index: int, column: str) -> dict[str, Any]:
         est = self.estimate
@@ -258,6 +277,8 @@ class Characterisation:
             lines.append(f"  note: {' '.join(str(message).split())}")
         if conf is not None:
             lines.extend(f"  note: {note}" for note in conf.notes)
+        if est.details.get("static_model") == "affine":
+            lines.append(self._static_line())
         noise = ", ".join(f"{s:.3g}" for s in est.noise_std)
         lines.append(f"  noise std: {noise} K" + (f"; beta {est.beta:.6g}" if est.beta else ""))
         if self.gas_estimate is not None:
