@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from dualprobe.models.held import HELD_SHARE, held_noise_std, held_share, unhold
+from dualprobe.models.held import held_noise_std, is_held, unhold
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
@@ -58,8 +58,8 @@ def prepare_readings(
     refuse_stuck([(columns[0], t1, columns[1], t2), (columns[1], t2, columns[0], t1)], ts,
                  stamps)
     values, notes = [], []
-    for (x, rows), column in zip(held, columns, strict=True):
-        if rows == 1 and not held_share(x) > HELD_SHARE:
+    for raw, (x, _), column in zip((t1, t2), held, columns, strict=True):
+        if not is_held(raw, ts):
             # an irregular hold (left to the model check, which names it) is a staircase: its
             # curvature scale is zero between refreshes and each turn looked like a spike
             x, spikes = despike(x)
