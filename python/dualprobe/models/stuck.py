@@ -102,15 +102,19 @@ def find_stuck(x: np.ndarray, other: np.ndarray, ts: float) -> list[Stuck]:
     adc = float(np.min(moving)) if moving.size else 0.0
     limit = max(FROZEN_STEPS * adc, FROZEN_FLOOR)
     tau = _SLOWEST * x.size * ts
-    limits = thresholds(x) if x.size > MAX_RUN + 4 else np.full(x.size, np.inf)
-    held = is_held(x, ts)
+    # the spike threshold (a running median over the record) and the held test only for a run
+    # that leaves and comes back: most records have none, and despike computes it again
+    limits: np.ndarray | None = None
     found: list[Stuck] = []
     for start, length in zip(starts.tolist(), lengths.tolist(), strict=True):
         end = start + length  # first row after the run
-        if not held and start > 0 and end < x.size:
-            into, out = x[start] - x[start - 1], x[end] - x[end - 1]
-            bound = limits[start - 1]
-            if into * out < 0.0 and min(abs(into), abs(out)) > bound:
+        into = x[start] - x[start - 1] if start > 0 else 0.0
+        out = x[end] - x[end - 1] if end < x.size else 0.0
+        if into * out < 0.0:
+            if limits is None:
+                limits = (np.full(x.size, np.inf) if is_held(x, ts) or x.size <= MAX_RUN + 4
+                          else thresholds(x))
+            if min(abs(into), abs(out)) > limits[start - 1]:
                 found.append(Stuck(start, length, float(x[start]), "dropout",
                                    float(min(abs(into), abs(out)))))
                 continue
