@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.signal import butter, sosfiltfilt
 
+from dualprobe.estimation.confidence import SETTING_SHARE
 from dualprobe.estimation.engine import Fit
 from dualprobe.io import EstimationError
 from dualprobe.models.held import held_share
@@ -82,6 +83,54 @@ def test_mass_flow_column_meets_the_issue_bounds() -> None:
     assert not any("holds its readings" in r for r in result.model_check.reasons)
     summary = result.summary()
     assert TRACKED_STD_NOTE not in summary and TRACKED_NOISE_STD_NOTE not in summary
+
+
+@pytest.mark.parametrize("gains,offset", [((1.0, 1.0), 3.0), ((1.0, 1.03), 0.0)])
+def test_a_gain_or_offset_between_the_sensors_keeps_the_verdict(
+        gains: tuple[float, float], offset: float) -> None:
+    """10 Hz, tau 4 / 12 s, m 0.5, the mass flow. The pair alone is explained (1.13 times the
+    noise, 1.01x the oracle); with 3 K added to sensor 2, or its gain 1.03, the affine map's
+    level term stopped at the usual level's 1.52 ("does not explain the data") although the
+    sharper level gave 1.14: an offset the map removes exactly must not change the verdict.
+    Measured now: 1.14 / 1.16, adequate, m 0.516, the gas 1.01x the oracle."""
+    rec = record(7, gains=gains)
+    result = characterise_arrays(rec.t1, rec.t2 + offset, rec.ts, time=rec.t,
+                                 flow=rec.mass_flow, flow_column="mdot",
+                                 reconstruction="smoother")
+    assert result.estimate.details.get("static_model") == "affine"
+    assert result.model_check is not None and result.model_check.adequate, (
+        result.model_check.reasons)
+    model = result.estimate.flow_model
+    assert model is not None and abs(model.exponent - 0.5) < 0.05  # issue 11: m within 0.05
+    assert max(_tau_errors(result, rec)) < 0.05  # issue 11: per-row within 5 % RMS
+    assert result.gas_estimate is not None
+    best = oracle(rec.t, rec.t1, rec.t2 + offset, rec.gas, rec.tau1, rec.tau2,
+                  (rec.noise, rec.noise), static2=(gains[1] / gains[0], offset),
+                  gases=("rw",)).rmse
+    # issue 11: within 1.5x the oracle (measured 1.01x)
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * best
+
+
+def test_a_fast_pair_at_a_high_rate_is_not_called_undetermined() -> None:
+    """100 Hz, 10 min, tau 0.3 / 0.9 s (fast thermocouples), the mass flow. Over 60 000 rows
+    the time constants moved with the filter setting by 0.1 % (significant against their
+    0.1 % jackknife uncertainty), and that alone called them "not identifiable" and the
+    reconstruction "not reliable: the lag correction may swing by as much" at the oracle's
+    accuracy (0.408 K against 0.408 K). A move is now material beyond 5 % (SETTING_SHARE)."""
+    rec = record(7, tau=0.3, rate=100.0, duration=600.0)
+    result = _with_mass_flow(rec)
+    conf = result.estimate.confidence
+    assert conf is not None
+    for name in ("tau1_0", "tau2_0"):
+        # the case: a move that is significant (nonzero) but immaterial
+        assert 0.0 < conf.settings_std[name] < SETTING_SHARE * conf.values[name]
+        assert conf.identifiable[name], conf.reasons[name]
+    assert result.reconstruction_doubts() == []
+    # issue 11's bounds but the 15 % of the raw sensor, which a 0.3 s sensor beside a 0.15 s
+    # gas fluctuation of 1.5 K leaves out of reach (the oracle itself: 18 %)
+    assert max(_tau_errors(result, rec)) < 0.05
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec)
 
 
 @pytest.mark.parametrize("seed,options", [(1, {}), (7, {"rate": 2.0, "tau": 8.0})])

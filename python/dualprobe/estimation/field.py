@@ -328,8 +328,7 @@ def _level(
     if not chosen:
         return None
     best, schedule, reference, span = chosen[0]
-    if len(chosen) == 2 and flow.evidence(float(best.fun), float(chosen[1][0].fun),
-                                          n_eff) > GAP_THRESHOLD:
+    if len(chosen) == 2 and _sharper_wins(float(best.fun), float(chosen[1][0].fun), n_eff):
         best, schedule, reference, span = chosen[1]
     statistic = flow.evidence(misfit, float(best.fun), n_eff)
     psi = schedule(best.x)
@@ -370,6 +369,22 @@ def _level(
                                level_reference=reference,
                                level_curvature=float(best.x[2]) / span**2,
                                level_parameters=(float(best.x[1]), float(best.x[2])))
+
+
+def _sharper_wins(usual: float, sharp: float, n_eff: float) -> bool:
+    """Whether the sharper level's misfit ``sharp`` replaces the usual level's ``usual``: when
+    it explains significantly more, or when the usual level misfits significantly and the
+    sharper one does not. Why the second: the model check calls a misfit beyond
+    ``GAP_THRESHOLD`` inadequate, so the evidence between the two must not keep it there. A
+    pair with an offset of 3 K between its sensors (affine map, separate generator, 10 Hz, the
+    mass flow) kept 1.52 times the noise with the usual level (statistic 13.9: "does not
+    explain the data") against 1.14 with the sharper one (evidence 9.0); the unit map on the
+    same signals without the offset: 1.13, adequate. The near-equal sheaths that make the rule
+    ask for evidence (above) misfit within the noise band with the usual level (1.47 on 580
+    effective rows: 8.0), which this leaves alone."""
+    return (flow.evidence(usual, sharp, n_eff) > GAP_THRESHOLD
+            or (flow.evidence(usual, 1.0, n_eff) > GAP_THRESHOLD
+                >= flow.evidence(sharp, 1.0, n_eff)))
 
 
 def _curve(

@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
-from dualprobe.estimation.confidence import RELATIVE_LIMIT
+from dualprobe.estimation.confidence import RELATIVE_LIMIT, SETTING_SHARE
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
@@ -178,20 +178,11 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
     return ModelCheck(not reasons, mu, statistic, ratios, reasons)  # type: ignore[arg-type]
 
 
-# A second stage whose standard uncertainty from the filter setting alone (tf/2 .. 2 tf) exceeds
-# this share of its value is not resolved: it depends on an arbitrary weighting of frequencies
-# by more than the 5 % the per-row time constants are held to. Seen on a flow-following pair
-# with near-equal sheaths (0.54 / 0.61 s) whose sheaths follow the flow with their own
-# exponents (0.44, 0.52; the element 0.47): second stages 1.36 +- 0.04 and 2.66 +- 0.30 s
-# (11 %), dominant 3.39 / 4.83 s for 1.54 / 3.88, the model "adequate" and a gas 17.7 K off
-# (raw fast sensor 13 K); first order: 5.4 K, flagged as a misfit. Resolved stages move by
-# 0-1 % of their value (sheaths of 0.1-0.8 s at 2-50 Hz, with or without their own exponents).
-_SETTING_SHARE = 0.05
 
 
 def unsettled_stages(estimate: PairEstimate) -> list[tuple[int, float]]:
     """(sensor index, setting uncertainty / value) of the second stages whose setting
-    uncertainty exceeds ``_SETTING_SHARE`` of their value, for an order-2 estimate whose
+    uncertainty exceeds ``SETTING_SHARE`` of their value, for an order-2 estimate whose
     misfit is within the noise band (none without uncertainties, or when it misfits)."""
     conf = estimate.confidence
     _, statistic = _misfit(estimate)
@@ -203,7 +194,7 @@ def unsettled_stages(estimate: PairEstimate) -> list[tuple[int, float]]:
         value, share = conf.values.get(name), conf.settings_std.get(name)
         if value is None or share is None or not (math.isfinite(value) and value > 0.0):
             continue
-        if share > _SETTING_SHARE * value:
+        if share > SETTING_SHARE * value:
             found.append((index, share / value))
     return found
 
