@@ -351,6 +351,21 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
     for i, column in enumerate(columns):
         taus = estimate.time_constants[i]
         longest = max(taus) / (float(np.min(psi)) if psi is not None else 1.0)
+        tracked = estimate.flow_model is not None and estimate.flow_model.kind == "tracked"
+        if (tracked and psi is not None and math.isfinite(longest)
+                and max(taus) <= RECORD_FRACTION * duration < longest):
+            # only the tracked schedule's dip is that long: one sensor drifting 3 K against
+            # the other over 20 min was tracked as time constants varying 470-fold (1.3 s to
+            # 616 s) and refused with "record longer", which the record did not need
+            at = float(np.argmin(psi)) / max(psi.size - 1, 1) * duration
+            raise EstimationError(
+                f"{column}: the tracked time constant reaches {longest:.4g} s at {at:.0f} s "
+                f"into the record ({float(np.median(psi) / np.min(psi)):.3g} times its "
+                f"median), longer than a third of the record ({duration:.4g} s): the tracking "
+                "absorbed something the model lacks (one sensor drifting against the other, a "
+                "channel that stops following the gas), not a time constant; check both "
+                "channels there, give --flow, or --track off for constant time constants "
+                "(their misfit reported)")
         if not math.isfinite(longest) or longest > RECORD_FRACTION * duration:
             raise EstimationError(
                 f"{column}: time constant {longest:.4g} s is longer than a third of the record "
