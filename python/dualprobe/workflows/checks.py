@@ -178,8 +178,6 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
     return ModelCheck(not reasons, mu, statistic, ratios, reasons)  # type: ignore[arg-type]
 
 
-
-
 def unsettled_stages(estimate: PairEstimate) -> list[tuple[int, float]]:
     """(sensor index, setting uncertainty / value) of the second stages whose setting
     uncertainty exceeds ``SETTING_SHARE`` of their value, for an order-2 estimate whose
