@@ -345,11 +345,12 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
     """Raise EstimationError (exit 3) for results no physics allows (module docstring).
     ``gas``: the reconstruction, in sensor 1's calibration; ``static``: sensor 2's map onto it
     (g, o) under the affine static model."""
-    psi = estimate.flow_model.psi if estimate.flow_model is not None else None
+    model = estimate.flow_model
+    psi = model.psi if model is not None else None
+    tracked = model is not None and model.kind == "tracked"
     for i, column in enumerate(columns):
         taus = estimate.time_constants[i]
         longest = max(taus) / (float(np.min(psi)) if psi is not None else 1.0)
-        tracked = estimate.flow_model is not None and estimate.flow_model.kind == "tracked"
         if (tracked and psi is not None and math.isfinite(longest)
                 and max(taus) <= RECORD_FRACTION * duration < longest):
             # only the tracked schedule's dip is that long: one sensor drifting 3 K against
