@@ -86,6 +86,29 @@ def test_data_columns_with_units_in_the_header(tmp_path: Path) -> None:
     assert recording.notes == ()
 
 
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_a_time_column_named_otherwise_is_found_without_time(tmp_path: Path, fmt: str) -> None:
+    """Loggers name their clock 'time', 'Time [ms]' or 'timestamp'; the default time column
+    't' is then the one column so named, with a note; never a guess among several."""
+    t = np.arange(200) * 0.1
+    write = write_csv if fmt == "csv" else write_parquet
+    for header, scale in (("time", 1.0), ("Time [ms]", 1000.0), ("Timestamp", 1.0)):
+        path = write(tmp_path / f"r.{fmt}", {header: t * scale, **slow_signals(t)})
+        recording = load_recording(path, ["T_m1", "T_m2"])
+        np.testing.assert_allclose(recording.t, t, rtol=1e-12, atol=1e-12)
+        assert recording.sample_interval == pytest.approx(0.1, rel=1e-9)
+        assert recording.notes[0] == (f"time column {header!r} (the file has no column 't'; "
+                                      "--time COL names another)")
+    # Two candidates: no guess, the usual error naming the columns; --time picks one.
+    both = write(tmp_path / f"both.{fmt}", {"time": t, "timestamp": t + 5.0, **slow_signals(t)})
+    assert "missing column 't'; available: time, timestamp" in error_of(both, ["T_m1"])
+    assert load_recording(both, ["T_m1"], time="timestamp").t[0] == pytest.approx(5.0)
+    # A 't' is taken as before, without a note, even beside a 'time' column.
+    plain = write(tmp_path / f"t.{fmt}", {"t": t, "time": t + 5.0, **slow_signals(t)})
+    recording = load_recording(plain, ["T_m1"])
+    assert recording.t[0] == 0.0 and recording.notes == ()
+
 def test_clock_jitter_is_resampled_with_a_note(tmp_path: Path) -> None:
     rng = np.random.default_rng(5)
     ts = 0.015

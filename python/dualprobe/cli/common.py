@@ -136,7 +136,8 @@ def add_time_arguments(parser: Any, *, unit: bool = False) -> None:
         "--time",
         default="t",
         metavar="COL",
-        help="time column (default: t; 'Time (ms)' is found as Time and read in ms); '' if "
+        help="time column (default: t, else the one column named time or timestamp; "
+        "'Time (ms)' is found as Time and read in ms); '' if "
         "the file has none, then give --sample-interval. MDF4: each group's master channel",
     )
     parser.add_argument(

@@ -24,7 +24,7 @@ from dualprobe.io.errors import InputError
 from dualprobe.io.mdf import MDF_MAGIC, read_mdf
 from dualprobe.io.missing import MISSING, drop_missing
 from dualprobe.io.parquet import PARQUET_MAGIC, read_parquet
-from dualprobe.io.table import Table
+from dualprobe.io.table import DEFAULT_TIME, Table
 from dualprobe.io.timebase import (
     BRIDGE_ROWS,
     TIME_UNITS,
@@ -32,6 +32,7 @@ from dualprobe.io.timebase import (
     TimeBase,
     analyse_time,
     resample_segments,
+    split_unit,
     stamp_resolution,
     time_unit_factor,
     time_unit_of,
@@ -247,6 +248,10 @@ def load_recording(
         raise InputError(f"sample interval must be finite and > 0, got {sample_interval!r}")
     table, kind = _read_table(path, wanted, time, raster)
     notes = list(table.notes)
+    named = table.time_name if kind != "mdf4" else None  # MDF4: the masters are the time
+    if time == DEFAULT_TIME and named and split_unit(named)[0] != time:
+        notes.append(f"time column {named!r} (the file has no column {time!r}; "
+                     "--time COL names another)")
     data = {name: table.columns[name] for name in wanted}
     size = next(iter(data.values())).size
     if table.time is not None:

@@ -10,7 +10,12 @@ import numpy as np
 from dualprobe.io.errors import InputError
 from dualprobe.io.timebase import split_unit
 
-__all__ = ["Table", "resolve_columns"]
+__all__ = ["DEFAULT_TIME", "Table", "resolve_columns"]
+
+DEFAULT_TIME = "t"  # the time column a file is read with unless told otherwise
+# Names loggers give their time column (compared without case and unit): the default time
+# column, when the file has no ``t``, is the one column so named ("Time [s]", "timestamp").
+_TIME_NAMES = frozenset({"t", "time", "timestamp", "timestamps", "zeit"})
 
 
 @dataclass
@@ -36,12 +41,21 @@ class Table:
     fixed_unit: bool = False
 
 
+def _time_column(available: Sequence[str]) -> str | None:
+    """The one column named like a time column (``_TIME_NAMES``), None if none or several."""
+    found = [name for name in available if split_unit(name)[0].lower() in _TIME_NAMES]
+    return found[0] if len(found) == 1 else None
+
+
 def resolve_columns(
-    source: str, available: Sequence[str], requested: Sequence[str]
+    source: str, available: Sequence[str], requested: Sequence[str], *,
+    time: str | None = None,
 ) -> dict[str, str]:
     """Requested name -> name in the file: the exact name, else the one column whose name is
     the requested one followed by a unit in parentheses or brackets (``--time Time`` finds
-    ``Time (ms)``). A missing column lists the available ones."""
+    ``Time (ms)``); ``time`` (the requested time column) at ``DEFAULT_TIME`` is else the one
+    column named like a time column (``time``, ``Time [s]``, ``timestamp``). A missing column
+    lists the available ones."""
     bases: dict[str, list[str]] = {}
     for name in available:
         bases.setdefault(split_unit(name)[0], []).append(name)
@@ -57,6 +71,8 @@ def resolve_columns(
                 f"{source}: column {name!r} is ambiguous: "
                 f"{', '.join(repr(c) for c in bases[name])}; give the full name"
             )
+        elif name == time == DEFAULT_TIME and (alias := _time_column(available)) is not None:
+            found[name] = alias
         else:
             missing.append(name)
     if missing:
