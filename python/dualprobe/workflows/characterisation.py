@@ -152,7 +152,9 @@ class Characterisation:
                     doubts.append(f"it rests on {column}'s time constant, which the data do "
                                   "not determine: the lag correction may swing by as much")
         if self.model_check is not None and not self.model_check.adequate:
-            doubts.append("the model does not explain both signals (see the model check)")
+            doubts.append("the model does not explain both signals (see the model check)"
+                          if not self.model_check.fits else "the tracked time constants are "
+                          "not determined by these data (see the model check)")
         return doubts
 
     def to_json_dict(self) -> dict[str, Any]:

@@ -92,6 +92,9 @@ class ModelCheck:
     estimation_statistic: float  # its excess in noise-only standard deviations
     misfit_to_noise: tuple[float, float] | None  # each sensor's residual RMS / its noise
     reasons: list[str] = field(default_factory=list)
+    # False when a reason is a misfit; True when every reason is a doubt of another kind (a
+    # tracked schedule the data do not determine, below): the signals are explained
+    fits: bool = True
 
     def to_json_dict(self) -> dict[str, Any]:
         return {"adequate": self.adequate, "estimation_misfit": self.estimation_misfit,
@@ -157,6 +160,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             f"the identified model does not explain the data: the two sensors' reconstructions "
             f"disagree by {math.sqrt(mu):.3g} times what their noise allows (misfit {mu:.3g} x "
             f"the noise, {statistic:.0f} standard deviations); {why}")
+    misfits = bool(reasons)
     psi_noise = model.psi_noise if model is not None else math.nan
     if psi_noise > PSI_NOISE_LIMIT:
         reasons.append(
@@ -173,9 +177,11 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
                        for r, s in zip(residuals, sigma, strict=True))
         for i, ratio in enumerate(ratios):
             if ratio > MISFIT_LIMIT:
+                misfits = True
                 reasons.append(f"sensor {i + 1}'s reading departs from the model by "
                                f"{ratio:.3g} times its noise (RMS)")
-    return ModelCheck(not reasons, mu, statistic, ratios, reasons)  # type: ignore[arg-type]
+    return ModelCheck(not reasons, mu, statistic, ratios, reasons,  # type: ignore[arg-type]
+                      not misfits)
 
 
 def unsettled_stages(estimate: PairEstimate) -> list[tuple[int, float]]:
