@@ -191,7 +191,7 @@ def test_flow_column_and_noise_level(tmp_path: Path, capsys: pytest.CaptureFixtu
         (["--noise-std", "0.1,0.1,0.1"], "--noise-std"),
         (["--flow", "T_ref"], "--flow"),
         (["--flow", "nope"], "nope"),
-        (["--flow", "bad"], "flow sample 5"),
+        (["--flow", "bad"], "column 'bad' is 0 or below on 1 of"),
     ],
 )
 def test_bad_flow_or_noise_exit_2_with_one_line(

@@ -259,3 +259,24 @@ def test_the_static_map_between_the_sensors_is_printed(
     # equal scales: unit gains, no line
     status = main(["characterise", str(path), "--flow", "mdot"])
     assert status == 0 and "static map" not in capsys.readouterr().out
+
+
+def test_a_flow_column_at_zero_while_the_engine_is_off_names_a_window(
+        drive_csv: tuple[Path, sim.FieldRecording], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    """A mass flow that reads 0 for a minute (engine stopped): one line and exit 2, naming how
+    many rows, when, and the longest stretch above 0 as a --window, with which it runs."""
+    _, rec = drive_csv
+    flow = rec.flow.copy()
+    flow[3000:3600] = 0.0  # t = 300-359.9 s of 900 s
+    stopped = tmp_path / "stopped.csv"
+    write_columns(stopped, {"t": rec.t, "T_m1": rec.t1, "T_m2": rec.t2, "mdot": flow})
+    capsys.readouterr()
+    assert main(["characterise", str(stopped), "--flow", "mdot"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.strip().count("\n") == 0
+    assert ("column 'mdot' is 0 or below on 600 of 9000 rows (t = 300-359.9 s)"
+            in captured.err)
+    assert "give --window 360:899.9 (the longest stretch above 0, 539.9 s)" in captured.err
+    assert main(["characterise", str(stopped), "--flow", "mdot", "--window", "360:899.9"]) == 0
+    assert "flow law: power law" in capsys.readouterr().out

@@ -48,6 +48,8 @@ def diagnose_file(
                                required=[flow_column] if flow_column else [], window=window,
                                missing=missing)
     recording.require_contiguous("diagnose")
+    if flow_column:
+        recording.require_positive(flow_column, f"--flow {flow_column!r} must be > 0")
     columns = recording.columns
     # the sensor only: a reference may be a setpoint, flat on its plateaus and stepping
     # between them, which the sensor follows (models/stuck.py's rules are for a lagging sensor)

@@ -85,6 +85,31 @@ class Recording:
             "cut the file at the gap"
         )
 
+    def require_positive(self, column: str, what: str) -> None:
+        """Refuse (InputError, one line) a column with values of 0 or below, naming how many,
+        where, and the longest stretch above 0 as a ``--window`` (a flow column reads 0 while
+        the engine is off)."""
+        low = self.columns[column] <= 0.0
+        if not low.any():
+            return
+        rows = np.flatnonzero(low)
+        first, last = float(self.t[rows[0]]), float(self.t[rows[-1]])
+        # the longest run of rows above 0: its bounds are the edges of the runs of low rows
+        edges = np.flatnonzero(np.diff(np.concatenate(([1], low.view(np.int8), [1]))))
+        starts, stops = edges[::2], edges[1::2]  # (low rows mark 1: runs of 0 between)
+        hint = "cut those rows"
+        if starts.size:
+            k = int(np.argmax(stops - starts))
+            if stops[k] - starts[k] >= 2:
+                a, b = float(self.t[starts[k]]), float(self.t[stops[k] - 1])
+                hint = (f"give --window {a:.10g}:{b:.10g} (the longest stretch above 0, "
+                        f"{b - a:.6g} s) or cut those rows")
+        where = f"t = {first:.6g} s" if rows.size == 1 else f"t = {first:.6g}-{last:.6g} s"
+        raise InputError(
+            f"{self.source}: column {column!r} is 0 or below on {rows.size} of {low.size} rows "
+            f"({where}); {what}: {hint}"
+        )
+
 
 def detect_format(path: str | os.PathLike[str]) -> str:
     """'csv', 'parquet' or 'mdf4' from the file's first bytes, else its extension."""

@@ -398,6 +398,9 @@ def characterise_file(
         required=[name for name in (reference, flow) if name], window=window,
         missing=missing,
     )
+    if flow:
+        recording.require_positive(flow, f"--flow {flow!r} must be > 0 (any positive "
+                                   "flow-like quantity: only its ratios matter)")
     columns = recording.columns
     result = characterise_arrays(
         columns[sensor1],
