@@ -104,6 +104,9 @@ def test_a_time_column_named_otherwise_is_found_without_time(tmp_path: Path, fmt
     both = write(tmp_path / f"both.{fmt}", {"time": t, "timestamp": t + 5.0, **slow_signals(t)})
     assert "missing column 't'; available: time, timestamp" in error_of(both, ["T_m1"])
     assert load_recording(both, ["T_m1"], time="timestamp").t[0] == pytest.approx(5.0)
+    # A temperature named 'T' is not a clock: the usual error.
+    temperature = write(tmp_path / f"T.{fmt}", {"T": slow_signals(t)["T_m1"], **slow_signals(t)})
+    assert "missing column 't'; available: T, T_m1, T_m2" in error_of(temperature, ["T_m1"])
     # A 't' is taken as before, without a note, even beside a 'time' column.
     plain = write(tmp_path / f"t.{fmt}", {"t": t, "time": t + 5.0, **slow_signals(t)})
     recording = load_recording(plain, ["T_m1"])

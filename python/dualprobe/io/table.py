@@ -15,7 +15,8 @@ __all__ = ["DEFAULT_TIME", "Table", "resolve_columns"]
 DEFAULT_TIME = "t"  # the time column a file is read with unless told otherwise
 # Names loggers give their time column (compared without case and unit): the default time
 # column, when the file has no ``t``, is the one column so named ("Time [s]", "timestamp").
-_TIME_NAMES = frozenset({"t", "time", "timestamp", "timestamps", "zeit"})
+# Not "T": that is as often a temperature.
+_TIME_NAMES = frozenset({"time", "timestamp", "timestamps", "zeit"})
 
 
 @dataclass
