@@ -150,9 +150,9 @@ class _Normal:
 
     def __init__(self, dense: np.ndarray, knots: sp.csc_matrix, weights: np.ndarray,
                  rough: sp.spmatrix, penalty: float, mean: np.ndarray, stiff: float) -> None:
-        wd = dense * weights[:, None]
-        self.a = dense.T @ wd
-        self.b = np.asarray(knots.T @ wd)
+        self.wd = dense * weights[:, None]  # the dense columns weighted (the gradient's too)
+        self.a = dense.T @ self.wd
+        self.b = np.asarray(knots.T @ self.wd)
         block = (knots.T @ sp.diags(weights) @ knots + penalty * rough).tocsc()
         self.band = _lower_band(block)
         self.mean, self.stiff = mean, stiff
@@ -203,7 +203,7 @@ def _levenberg(cols: _Columns, p: np.ndarray, weights: np.ndarray, penalty: floa
         dense, knots = cols.jacobian(p, psi, phi)
         normal = _Normal(dense, knots, weights, rough, penalty, mean, stiff)
         z = p[6:]
-        grad = np.concatenate([(dense * weights[:, None]).T @ r,
+        grad = np.concatenate([normal.wd.T @ r,
                                knots.T @ (weights * r) + penalty * (rough @ z)
                                + stiff * mean * (mean @ z)])
 

@@ -161,8 +161,7 @@ def _slow_columns(
     path: Path, requested: list[str], time: str | None
 ) -> tuple[list[str], dict[str, str], dict[str, np.ndarray], list[int]]:
     header, data, lines = read_csv_table(path)
-    names = resolve_columns(str(path), header, ([time] if time else []) + requested,
-                            time=time)
+    names = resolve_columns(str(path), header, requested, time=time)
     width = len(header)
     for row, line in zip(data, lines, strict=True):
         if len(row) != width:
@@ -225,8 +224,7 @@ def _fast_columns(
     _check_header(path, header, header_line)
     if _NON_BLANK.search(raw, body) is None:
         raise InputError(f"{path}: header only, no data rows (header: {', '.join(header)})")
-    names = resolve_columns(str(path), header, ([time] if time else []) + requested,
-                            time=time)
+    names = resolve_columns(str(path), header, requested, time=time)
     actual = list(dict.fromkeys(names.values()))
     try:
         table = pacsv.read_csv(

@@ -67,8 +67,7 @@ def read_parquet(
         available = [
             name for name in handle.schema_arrow.names if not name.startswith("__index_level_")
         ]
-        names = resolve_columns(source, available, ([time] if time else []) + requested,
-                            time=time)
+        names = resolve_columns(source, available, requested, time=time)
         try:
             table = handle.read(columns=list(dict.fromkeys(names.values())))
         except (pa.ArrowException, OSError, ValueError) as exc:

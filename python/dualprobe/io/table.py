@@ -52,17 +52,17 @@ def resolve_columns(
     source: str, available: Sequence[str], requested: Sequence[str], *,
     time: str | None = None,
 ) -> dict[str, str]:
-    """Requested name -> name in the file: the exact name, else the one column whose name is
-    the requested one followed by a unit in parentheses or brackets (``--time Time`` finds
-    ``Time (ms)``); ``time`` (the requested time column) at ``DEFAULT_TIME`` is else the one
-    column named like a time column (``time``, ``Time [s]``, ``timestamp``). A missing column
-    lists the available ones."""
+    """Requested name (and ``time``, the time column, looked up first) -> name in the file:
+    the exact name, else the one column whose name is the requested one followed by a unit in
+    parentheses or brackets (``--time Time`` finds ``Time (ms)``); ``time`` at
+    ``DEFAULT_TIME`` is else the one column named like a time column (``time``, ``Time [s]``,
+    ``timestamp``). A missing column lists the available ones."""
     bases: dict[str, list[str]] = {}
     for name in available:
         bases.setdefault(split_unit(name)[0], []).append(name)
     found: dict[str, str] = {}
     missing: list[str] = []
-    for name in requested:
+    for name in ([time] if time else []) + list(requested):
         if name in available:
             found[name] = name
         elif len(bases.get(name, [])) == 1:
