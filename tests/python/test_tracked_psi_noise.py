@@ -12,9 +12,13 @@ drive-cycle simulator (dualprobe.simulate), written apart from the check.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+import pytest
 
 from dualprobe import simulate as sim
+from dualprobe.estimation import tracking
 from dualprobe.workflows.characterise import characterise_arrays
 from dualprobe.workflows.checks import PSI_NOISE_LIMIT
 
@@ -74,3 +78,20 @@ def test_a_tracked_schedule_that_follows_the_flow_is_not_flagged() -> None:
     tau1, _ = result.time_constants_per_row()  # type: ignore[attr-defined]
     log_error = np.log(tau1 / rec.tau1)
     assert noise <= float(np.sqrt(np.mean((log_error - log_error.mean()) ** 2)))
+
+
+def test_a_tracked_schedule_whose_noise_check_fails_is_not_called_adequate(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # the split itself can fail (a half untrackable or its psi not positive: measured on two
+    # 5 Hz pairs with knots every tf/4, whose halves run at 2.5 Hz); psi_noise is then NaN, and
+    # an unchecked schedule is not "explains the data" (the failure stood in for here, on the
+    # well-tracked pair above, which the check passes as it is)
+    monkeypatch.setattr(tracking, "split_noise", lambda *args, **kwargs: math.nan)
+    result, _, noise, reasons, adequate = _characterise(_pair(0.0))
+    assert math.isnan(noise)
+    assert not adequate
+    assert any("could not be checked against the noise" in r for r in reasons), reasons
+    assert result.model_check.fits  # type: ignore[attr-defined]
+    doubts = result.reconstruction_doubts()  # type: ignore[attr-defined]
+    assert any("not shown to be" in d for d in doubts), doubts
+    assert not any("does not explain" in d for d in doubts), doubts

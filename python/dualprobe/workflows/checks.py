@@ -171,6 +171,16 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             "sample rate), so the per-row time constants and the reconstruction may be far off "
             "although the signals are explained: give the flow column (--flow) if the "
             "recording has one")
+    elif (model is not None and model.kind == "tracked" and "psi_noise" in model.evidence
+          and not math.isfinite(psi_noise)):
+        # the split was tried and failed (a half untrackable, or its psi not positive): the
+        # lower bound on psi's error is unknown, so no "explains the data" beside it
+        reasons.append(
+            "the tracked time constants could not be checked against the noise: tracked from "
+            "the even and from the odd rows apart, a half could not be tracked, so how far "
+            "noise alone moves them is unknown; the per-row time constants and the "
+            "reconstruction may be far off although the signals are explained: give the flow "
+            "column (--flow) if the recording has one")
     ratios = None
     if residuals is not None and sigma is not None:
         ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
