@@ -5,7 +5,8 @@ Where both sensors read alike and steady (idle) the cross-relation says nothing 
 the tracker's random walk carries it through the noise. On a drive cycle with a strong flow
 dependence (m = 0.68, psi 0.4-3) 23 of 12,000 rows dipped to -0.06: the whole tracking (misfit
 1.12 times the noise) was rejected, and the sheathed path fitted a sheath the pair does not have
-(misfit 132, the gas 4.12x the oracle, 43 s). The recording comes from the separate generator
+(misfit 132, the gas 4.12x the oracle, 43 s); its psi moves faster than knots every tf/2
+follow, so they are refined. The recording comes from the separate generator
 (tests/python/field_independent.py), the oracle knows the true time-varying sensors.
 """
 
@@ -50,9 +51,14 @@ def test_a_strongly_flow_dependent_pair_is_tracked_through_idle() -> None:
     ours = float(np.sqrt(np.mean((result.gas_estimate - rec.gas) ** 2)))
     best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
                   gases=("rw",)).rmse
-    # measured 3.38x (4.12x before): above the issue's 2.5x, because knots every tf/2 (2 s)
-    # cannot follow this flow's steps (tf/4 gave 2.40x); so it must not be called reliable
-    # beside that error: the noise part of psi alone is 6.5 % (psi_noise), which is flagged
-    assert ours <= 4.0 * best
+    # knots every tf/2 (2 s) cannot follow this flow's steps (psi moved 27 % RMS from knot to
+    # knot): they are refined to tf/4 (tracking._ROUGH_STEP)
+    assert model.tracking is not None and model.tracking.spacing_of_tf == 0.25
+    assert model.tracking.knot_step <= 0.2  # measured 0.081 (0.27 at tf/2)
+    # measured 2.40x (3.38x with knots every tf/2, 4.12x when the dip was rejected): within
+    # the issue's 2.5x for the record without the flow (a fixed, seeded record, so the margin
+    # covers floating-point differences between machines, not another draw)
+    assert ours <= 2.5 * best
     assert ours <= 0.5 * float(np.sqrt(np.mean((rec.t1 - rec.gas) ** 2)))
+    # the noise part of psi alone is 5.7 % (psi_noise), which is flagged: not called reliable
     assert result.model_check is not None and not result.model_check.adequate

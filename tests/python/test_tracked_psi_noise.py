@@ -74,6 +74,9 @@ def test_a_tracked_schedule_that_follows_the_flow_is_not_flagged() -> None:
     result, error, noise, reasons, _ = _characterise(rec)
     assert error < 0.1
     assert not _flagged(reasons), reasons
+    # psi moves little from knot to knot here: the knots stay every tf/2 (not refined)
+    model = result.estimate.flow_model  # type: ignore[attr-defined]
+    assert model.tracking is not None and model.tracking.spacing_of_tf == 0.5
     assert 0.0 < noise < PSI_NOISE_LIMIT
     tau1, _ = result.time_constants_per_row()  # type: ignore[attr-defined]
     log_error = np.log(tau1 / rec.tau1)

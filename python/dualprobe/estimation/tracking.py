@@ -133,6 +133,13 @@ def choose_penalty(
 
 PRACTICAL_VARIATION = 0.05  # psi must span >= 5 % (5-95 % quantiles) to count as varying
 _SPACING_OF_TF = 0.5  # knots every tf/2: resolves flow changes the filter itself resolves
+# ... unless psi moves more than this from knot to knot (RMS of log psi's steps): then the flow
+# changes faster than the knots, and they are set every tf/4. On the separate generator's
+# drive cycles without the flow (2026-11-29): 0.03-0.14 on 8 pairs that tf/4 leaves within
+# 0.03x of the oracle ratio (and tf/4 costs two 5 Hz pairs their noise check: halves at
+# 2.5 Hz), 0.27 on a pair with m 0.68 and psi 0.4-3 whose gas went 3.38x -> 2.40x the
+# oracle's error at tf/4 (per-row time constants 15 % -> 11 % off).
+_ROUGH_STEP = 0.2
 
 
 @dataclass(frozen=True)
@@ -143,7 +150,8 @@ class Tracking:
     ``time_constants / psi[k]``; ``time_constants`` per sensor (order 2: both stages) at
     psi = 1; ``misfit`` the tracked fit's smallest generalised eigenvalue, ``misfit_constant``
     the same model's with psi constant (the stiffest penalty); ``spacing`` knots in samples;
-    ``static`` the map (g, o) of sensor 2 onto sensor 1 it was tracked with."""
+    ``static`` the map (g, o) of sensor 2 onto sensor 1 it was tracked with;
+    ``spacing_of_tf`` the knot spacing asked for, in tf."""
 
     psi: np.ndarray
     time_constants: tuple[tuple[float, ...], tuple[float, ...]]
@@ -154,6 +162,15 @@ class Tracking:
     misfit_free: float
     spacing: int
     static: tuple[float, float]
+    spacing_of_tf: float = _SPACING_OF_TF
+
+    @property
+    def knot_step(self) -> float:
+        """RMS step of log psi from knot to knot (NaN where psi is not positive)."""
+        knots = self.psi[:: self.spacing]
+        if knots.size < 2 or not np.all(knots > 0.0):
+            return math.nan
+        return float(np.sqrt(np.mean(np.diff(np.log(knots)) ** 2)))
 
     @property
     def variation(self) -> float:
@@ -219,8 +236,8 @@ def _dense_columns(
 _STATIC_SEARCH_PENALTY = 40.0
 
 
-def _setup(t1: np.ndarray, ts: float, tf: float, order: int
-           ) -> tuple[int, int, RowFilter, np.ndarray]:
+def _setup(t1: np.ndarray, ts: float, tf: float, order: int,
+           spacing_of_tf: float = _SPACING_OF_TF) -> tuple[int, int, RowFilter, np.ndarray]:
     """(knot spacing, filter tail, the row filter, the free responses) of a record."""
     from dualprobe import _core
 
@@ -229,7 +246,7 @@ def _setup(t1: np.ndarray, ts: float, tf: float, order: int
     def row_filter(rows: np.ndarray) -> np.ndarray:
         return _core.svf_filter(rows, ts, tf, m, "foh")[:, 0, :]
 
-    spacing = max(1, round(_SPACING_OF_TF * tf / ts))
+    spacing = max(1, round(spacing_of_tf * tf / ts))
     return spacing, math.ceil(_TAIL * tf / ts), row_filter, _free_responses(ts, tf, m, t1.size)
 
 
@@ -303,16 +320,41 @@ def track(
     effective_rows: float,
     static: tuple[float, float] = (1.0, 0.0),
     passes: int = 2,
+    spacing_of_tf: float | None = None,
 ) -> Tracking:
     """Track the common factor of both sensors' time constants over the record (module
     docstring). ``static`` = (g, o): sensor 2 mapped to sensor 1's calibration, g T2 + o;
-    ``effective_rows`` sets the discrepancy band; order 2 refines phi = 1/psi in ``passes``."""
+    ``effective_rows`` sets the discrepancy band; order 2 refines phi = 1/psi in ``passes``;
+    knots every ``spacing_of_tf`` tf (None: tf/2, or tf/4 where psi moves by more than
+    ``_ROUGH_STEP`` from knot to knot at tf/2)."""
 
+    def at(fraction: float) -> Tracking:
+        return _track(t1, t2, ts, tf=tf, order=order, sigma=sigma, effective_rows=effective_rows,
+                      static=static, passes=passes, spacing_of_tf=fraction)
+
+    if spacing_of_tf is not None:
+        return at(spacing_of_tf)
+    coarse = at(_SPACING_OF_TF)
+    if coarse.spacing < 2 or not coarse.knot_step > _ROUGH_STEP:
+        return coarse
+    try:
+        fine = at(0.5 * _SPACING_OF_TF)
+    except TrackingError:
+        return coarse
+    return fine if np.all(fine.psi > 0.0) or not np.all(coarse.psi > 0.0) else coarse
+
+
+def _track(
+    t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, order: int,
+    sigma: tuple[float, float], effective_rows: float, static: tuple[float, float],
+    passes: int, spacing_of_tf: float,
+) -> Tracking:
+    """:func:`track` with the knots every ``spacing_of_tf`` tf."""
     gain, offset = static
     u2 = gain * np.asarray(t2, dtype=float) + offset
     u1 = np.asarray(t1, dtype=float)
     s = (sigma[0], gain * sigma[1])
-    spacing, tail, row_filter, free = _setup(u1, ts, tf, order)
+    spacing, tail, row_filter, free = _setup(u1, ts, tf, order, spacing_of_tf)
     phi = np.ones(u1.size)
     # order 2: a first-order pass gives phi for the second-order columns, then refine
     for current in [1] * (order == 2) + [order] * (passes if order == 2 else 1):
@@ -330,25 +372,29 @@ def track(
         polys.append(tuple(float(v) / (gain if i else 1.0) for v in c))
     taus = tuple(engine.polynomial_time_constants(p) for p in polys)
     return Tracking(psi, (taus[0], taus[1]), (polys[0], polys[1]), chosen.penalty,
-                    chosen.misfit, stiffest.misfit, freest.misfit, spacing, (gain, offset))
+                    chosen.misfit, stiffest.misfit, freest.misfit, spacing, (gain, offset),
+                    spacing_of_tf)
 
 
 def split_noise(
     t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, sigma: tuple[float, float],
-    static: tuple[float, float], effective_rows: float,
+    static: tuple[float, float], effective_rows: float, spacing_of_tf: float | None = None,
 ) -> float:
     """The part of a first-order tracked log psi that follows the noise, RMS: the record's even
     and odd rows (the same gas and flow, independent noise) tracked apart, each with its own
     penalty by the discrepancy principle at half the effective rows, and half the RMS difference
     of their log psi (the two differ by their noise, each about twice the whole record's in
     variance). The model error that both halves absorb alike is not in it: a lower bound on
-    psi's error. NaN when a half cannot be tracked or its psi is not positive."""
+    psi's error. ``spacing_of_tf``: the whole record's knots (``Tracking.spacing_of_tf``),
+    kept by the halves (None: chosen for them as for the whole record). NaN when a half cannot
+    be tracked or its psi is not positive."""
     u1, u2 = np.asarray(t1, dtype=float), np.asarray(t2, dtype=float)
     logs = []
     for rows in (slice(0, None, 2), slice(1, None, 2)):
         try:
             half = track(u1[rows], u2[rows], 2.0 * ts, tf=tf, order=1, sigma=sigma,
-                         effective_rows=0.5 * effective_rows, static=static)
+                         effective_rows=0.5 * effective_rows, static=static,
+                         spacing_of_tf=spacing_of_tf)
         except TrackingError:
             return math.nan
         if not np.all(half.psi > 0.0):

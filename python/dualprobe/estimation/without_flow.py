@@ -86,7 +86,8 @@ def track_without_flow(
         # warns beyond PSI_NOISE_LIMIT; the sheathed path's MAP psi has its own prior)
         noise = tracking.split_noise(t1, t2, base_fit.ts, tf=base_fit.tf, sigma=base_fit.sigma,
                                      static=model.tracking.static,
-                                     effective_rows=n_eff)
+                                     effective_rows=n_eff,
+                                     spacing_of_tf=model.tracking.spacing_of_tf)
         chosen = (chosen[0], dataclasses.replace(model, evidence={**model.evidence,
                                                                   "psi_noise": noise}))
     return chosen
