@@ -17,12 +17,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["OracleResult", "oracle", "smooth"]
+__all__ = ["OracleResult", "oracle", "ratio_to_oracle", "smooth"]
 
 
 def _chain_foh(taus: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -193,3 +194,13 @@ def oracle(
             lo, hi = (lo, m2) if r[0] < r[1] else (m1, hi)
     assert best is not None
     return best
+
+
+def ratio_to_oracle(estimate: np.ndarray, rec: Any) -> float:
+    """RMSE of a gas ``estimate`` against ``rec.gas`` over the oracle's, for an unsheathed
+    record of tests/python/field_independent.py (its true per-row time constants ``tau1``,
+    ``tau2`` and its ``noise``)."""
+    ours = float(np.sqrt(np.mean((np.asarray(estimate) - rec.gas) ** 2)))
+    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
+                  gases=("rw",)).rmse
+    return ours / best
