@@ -140,6 +140,7 @@ _SPACING_OF_TF = 0.5  # knots every tf/2: resolves flow changes the filter itsel
 # 2.5 Hz), 0.27 on a pair with m 0.68 and psi 0.4-3 whose gas went 3.38x -> 2.40x the
 # oracle's error at tf/4 (per-row time constants 15 % -> 11 % off).
 _ROUGH_STEP = 0.2
+FINE_SPACING_OF_TF = 0.5 * _SPACING_OF_TF  # the refined knots (also the caller's retry)
 
 
 @dataclass(frozen=True)
@@ -338,10 +339,11 @@ def track(
     if coarse.spacing < 2 or not coarse.knot_step > _ROUGH_STEP:
         return coarse
     try:
-        fine = at(0.5 * _SPACING_OF_TF)
+        fine = at(FINE_SPACING_OF_TF)
     except TrackingError:
         return coarse
-    return fine if np.all(fine.psi > 0.0) or not np.all(coarse.psi > 0.0) else coarse
+    # (coarse's psi is positive here: a knot step is only defined where it is)
+    return fine if np.all(fine.psi > 0.0) else coarse
 
 
 def _track(

@@ -73,7 +73,8 @@ def track_without_flow(
     # at all: an unsheathed 50 Hz pair with m = 0.7 had psi down to -66 at tf/2 (misfit 3.3)
     # and positive at tf/4 (1.105 times the noise); it had gone to the sheathed path (7.2x the
     # oracle, 7 min). The searched map first there: unit gains are what failed first.
-    for candidates, spacing in (([(1.0, 0.0), None], None), ([None, (1.0, 0.0)], 0.25)):
+    rounds = (([(1.0, 0.0), None], None), ([None, (1.0, 0.0)], tracking.FINE_SPACING_OF_TF))
+    for candidates, spacing in rounds:
         for candidate in candidates:
             result = attempt(candidate, spacing)
             if result is not None and (tracked is None or result.misfit < tracked.misfit):

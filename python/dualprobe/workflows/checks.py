@@ -69,6 +69,9 @@ LAG_MARGIN = 3.0
 # tracking absorbed (38 % and 28 % off, the gas 5.9x and 3.3x the oracle, their misfits at the
 # noise). The limit keeps well-tracked pairs at half of it or less.
 PSI_NOISE_LIMIT = 0.05
+_TRACKED_DOUBT = ("the per-row time constants and the reconstruction may be far off "
+                  "although the signals are explained: give the flow column (--flow) if "
+                  "the recording has one")
 
 
 def _shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
@@ -168,9 +171,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             f"even and from the odd rows apart they differ so that noise alone moves them by "
             f"{psi_noise:.1%} RMS (more than {PSI_NOISE_LIMIT:.0%}); the tracking follows the "
             "noise and may absorb an effect the model lacks (e.g. a sheath too short for the "
-            "sample rate), so the per-row time constants and the reconstruction may be far off "
-            "although the signals are explained: give the flow column (--flow) if the "
-            "recording has one")
+            f"sample rate), so {_TRACKED_DOUBT}")
     elif (model is not None and model.kind == "tracked" and "psi_noise" in model.evidence
           and not math.isfinite(psi_noise)):
         # the split was tried and failed (a half untrackable, or its psi not positive): the
@@ -178,9 +179,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
         reasons.append(
             "the tracked time constants could not be checked against the noise: tracked from "
             "the even and from the odd rows apart, a half could not be tracked, so how far "
-            "noise alone moves them is unknown; the per-row time constants and the "
-            "reconstruction may be far off although the signals are explained: give the flow "
-            "column (--flow) if the recording has one")
+            f"noise alone moves them is unknown; {_TRACKED_DOUBT}")
     ratios = None
     if residuals is not None and sigma is not None:
         ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
