@@ -20,7 +20,10 @@ all: test
 demo: setup-demo
 	$(VENV)/bin/dualprobe demo --out out/demo
 
-test: setup cpp-test asan-test lint pytest
+# One C++ build: the ASan/UBSan one (clang, CMakePresets.json), with every ctest test (the C API,
+# the consumer project, the fuzz target, the firmware on QEMU). `make cpp-test` is the same
+# tests in an optimised GCC build, for local use: not part of `make test`, whose time CI caps.
+test: setup asan-test lint pytest
 
 # setup-demo: a C++ compiler, Eigen, Python headers and the package (no test extras);
 # setup: everything the tests use (clang and its fuzzer runtime, the ARM toolchain, QEMU, ...).
