@@ -24,6 +24,9 @@ demo: setup-demo
 # the consumer project, the fuzz target, the firmware on QEMU). `make cpp-test` is the same
 # tests in an optimised GCC build, for local use: not part of `make test`, whose time CI caps.
 test: setup asan-test lint pytest
+# ctest's firmware.host_vs_reference has just run tests/python/test_firmware.py on the sanitised
+# host build; pytest alone would build its own host firmware (~4 min of CPU) for the same tests.
+test: PYTEST_ARGS = --ignore=tests/python/test_firmware.py
 
 # setup-demo: a C++ compiler, Eigen, Python headers and the package (no test extras);
 # setup: everything the tests use (clang and its fuzzer runtime, the ARM toolchain, QEMU, ...).
@@ -111,7 +114,7 @@ stubs: setup
 
 # Two workers (the machine has 2 cores); whole files per worker so module fixtures run once.
 pytest: setup
-	$(VPY) -m pytest -n 2 --dist loadfile
+	$(VPY) -m pytest -n 2 --dist loadfile $(PYTEST_ARGS)
 
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
