@@ -91,8 +91,9 @@ class _Problem:
         self.n = t.size
         self.sizes = (stages[0].size, stages[1].size)
         self.nx = 1 + sum(self.sizes)
-        self.prior = 1.0 / np.sqrt(q * self.h)
-        self.step = 1.0 / step_std
+        # the priors' weights: scalars, or per increment / knot step once reweighted
+        self.prior: float | np.ndarray = 1.0 / np.sqrt(q * self.h)
+        self.step: float | np.ndarray = 1.0 / step_std
         self.knots = math.ceil((self.n - 1) / spacing) + 1
         pos = (np.arange(self.n - 1) + 0.5) / spacing  # log psi at the interval midpoints
         j = np.floor(pos).astype(int)
@@ -211,20 +212,10 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
     return (x_new, z_new, map_new, res, a_x, a_z, a_s), float(res @ res)
 
 
-def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[float],
-            stages2: Sequence[float], static: tuple[float, float], sigma: tuple[float, float],
-            q: float, spacing: int, step_std: float, iterations: int = 30) -> PsiMap:
-    """The MAP schedule (module docstring). ``stages_i``: stage time constants at psi = 1, the
-    stage that sees the gas first; ``static`` the start of y2 = gain x + offset; ``q`` the gas
-    random walk's intensity (K^2/s); ``spacing`` rows between knots; ``step_std`` the prior
-    standard deviation of log psi from knot to knot. psi starts at 1 (starting at the true psi
-    gave the same optimum on a drive cycle: the start does not matter there)."""
-    problem = _Problem(np.asarray(t, float), (np.asarray(y1, float), np.asarray(y2, float)),
-                       (np.asarray(stages1, float), np.asarray(stages2, float)), sigma, q,
-                       spacing, step_std)
-    z = np.zeros(problem.knots)
-    mapping = np.array(static, dtype=float)
-    x = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
+def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.ndarray,
+                  iterations: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+    """Damped Gauss-Newton from (states, log psi knots, static map) under the problem's
+    present prior weights: the optimum, its cost and the iterations taken."""
     res, a_x, a_z, a_s = problem.system(x, z, mapping)
     cost = float(res @ res)
     damping = 1e-3
@@ -245,6 +236,39 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
         damping = max(damping / 10.0, 1e-9)
         if gain < 1e-7:
             break
+    return x, z, mapping, cost, done
+
+
+def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[float],
+            stages2: Sequence[float], static: tuple[float, float], sigma: tuple[float, float],
+            q: float, spacing: int, step_std: float, iterations: int = 30,
+            reweightings: int = 0) -> PsiMap:
+    """The MAP schedule (module docstring). ``stages_i``: stage time constants at psi = 1, the
+    stage that sees the gas first; ``static`` the start of y2 = gain x + offset; ``q`` the gas
+    random walk's intensity (K^2/s); ``spacing`` rows between knots; ``step_std`` the prior
+    standard deviation of log psi from knot to knot. psi starts at 1 (starting at the true psi
+    gave the same optimum on a drive cycle: the start does not matter there).
+
+    ``reweightings`` > 0 makes both priors heavy-tailed (Cauchy, by iteratively reweighted
+    least squares from the last optimum): a gas increment ``dg`` over ``h`` is weighted
+    ``1 / sqrt(q h + dg^2)`` and a knot step ``dz`` of log psi ``1 / sqrt(step_std^2 + dz^2)``.
+    Why: at load steps the gas moves by tens of kelvin and psi by a factor of 2 within a
+    second, which Gaussian random walks make many-sigma events, so the MAP smeared psi there
+    (README, "Heavy-tailed priors in the MAP")."""
+    problem = _Problem(np.asarray(t, float), (np.asarray(y1, float), np.asarray(y2, float)),
+                       (np.asarray(stages1, float), np.asarray(stages2, float)), sigma, q,
+                       spacing, step_std)
+    z = np.zeros(problem.knots)
+    mapping = np.array(static, dtype=float)
+    x = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
+    x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations)
+    for _ in range(reweightings):
+        gas = x.reshape(problem.n, problem.nx)[:, 0]
+        problem.prior = 1.0 / np.sqrt(q * problem.h + np.diff(gas) ** 2)
+        problem.step = 1.0 / np.sqrt(step_std ** 2 + np.diff(z) ** 2)
+        x = problem.states_for(z, mapping, x)
+        x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations)
+        done += more
     zeta = problem.hat @ z
     psi = np.exp(np.interp(np.arange(problem.n), np.arange(problem.n - 1) + 0.5, zeta))
     return PsiMap(psi, (float(mapping[0]), float(mapping[1])), cost, done)
