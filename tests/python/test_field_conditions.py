@@ -314,8 +314,10 @@ def test_without_flow_a_varying_pair_is_tracked_not_refused() -> None:
 def test_without_flow_a_misfit_constant_order_2_fit_is_refused_not_absurd(case: Case) -> None:
     """Flow-following pairs with one sheathed sensor, characterised without the flow: the
     constant order-2 fit absorbs the variation in poles no physics allows (each once came out
-    with exit 0, then was refused). The sheathed path now gives 1.3x, 1.9x and 2.5x the
-    oracle; whatever it gives must be honest (``_refused_or_honest``)."""
+    with exit 0, then was refused). The sheathed path now gives 1.28x, 1.57x and 2.60x the
+    oracle (the last with a misfit of 0.70, below the noise: it claimed to explain the data
+    until every sheathed-path schedule got the model check's doubt); whatever it gives must
+    be honest (``_refused_or_honest``)."""
     _refused_or_honest(case)
 
 

@@ -14,6 +14,7 @@ __all__ = [
     "DIRECTION_TOLERANCE",
     "GAP_THRESHOLD",
     "KAPPA",
+    "PSI_NOISE_LIMIT",
     "RECORD_FRACTION",
     "RESOLUTION_FLOOR",
     "SHARED_FACTOR",
@@ -28,6 +29,14 @@ __all__ = [
 # records, 10-100 Hz, 0.01-0.1 K); distinct poles 0.17 s / 0.19 s at 100 Hz, 0.01 K gave
 # >= 160 (and were estimated to 2 %).
 GAP_THRESHOLD = 10.0
+# A tracked schedule (no flow column) whose noise part alone moves the per-row time constants by
+# more than this, RMS: ``psi_noise`` (the even and odd rows tracked apart), a lower bound on
+# psi's error. Measured on drive cycles (2-50 Hz): 0.013-0.024 on first-order tracked pairs
+# 2.7-10 % off; 0.055 and 0.076 on a 50 Hz and a 2 Hz pair whose sheaths the first-order
+# tracking absorbed (38 % and 28 % off, the gas 5.9x and 3.3x the oracle, their misfits at the
+# noise). The limit keeps well-tracked pairs at half of it or less. Beyond it the model check
+# doubts the schedule, and the tracking tries the sheathed path.
+PSI_NOISE_LIMIT = 0.05
 RECORD_FRACTION = 1.0 / 3.0  # time constants longer than this share of the record: implausible
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
 # factor common to both transfer functions cancels from the cross-relation (it multiplies both
