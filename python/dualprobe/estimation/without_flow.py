@@ -95,22 +95,20 @@ def track_without_flow(
                 chosen = (estimate, FlowModel("tracked", tracked.psi, evidence=stats,
                                               tracking=tracked))
     model = chosen[1]
+    suspect = False
     if model.kind == "tracked" and model.tracking is not None:
         # the first-order tracking's psi: how much of it follows the noise (the model check
-        # warns beyond PSI_NOISE_LIMIT; the sheathed path's MAP psi has its own prior)
+        # warns beyond PSI_NOISE_LIMIT; the sheathed path measures its MAP psi's own)
         noise = tracking.split_noise(t1, t2, base_fit.ts, tf=base_fit.tf, sigma=base_fit.sigma,
                                      static=model.tracking.static,
                                      effective_rows=n_eff,
                                      spacing_of_tf=model.tracking.spacing_of_tf)
         chosen = (chosen[0], dataclasses.replace(model, evidence={**model.evidence,
                                                                   "psi_noise": noise}))
-        # a first-order psi that follows the noise this much has absorbed sheaths: try them,
-        # kept only when they fit better
-        if noise > _SHEATH_SUSPECT:
-            sheathed = _sheathed(t1, t2, base, chosen, run, stats)
-            if sheathed is not chosen:
-                return sheathed
-    if fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
+        # a first-order psi that follows the noise this much has absorbed sheaths
+        suspect = noise > _SHEATH_SUSPECT
+    # the sheathed path, kept only when it fits better (tried once: it is deterministic)
+    if suspect or fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
         chosen = _sheathed(t1, t2, base, chosen, run, stats)
     return chosen
 
@@ -146,14 +144,15 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         """The MAP log psi of these block rows (mean 0), knots every ``spacing`` blocks' time."""
         step = rows.step or 1
         knots = max(1, round(spacing / step))
+        y1, y2 = a[rows], b[rows]
         try:
-            refined = psi_map.map_psi(np.arange(a[rows].size) * ts * step, a[rows], b[rows],
-                                      stages[0], stages[1], (1.0 / gain, -offset / gain), sigma,
-                                      q, knots, _PSI_STEP * math.sqrt(knots * step * ts / fit.tf),
-                                      reweightings=_REWEIGHTINGS)
+            found = psi_map.map_psi(np.arange(y1.size) * ts * step, y1, y2, stages[0], stages[1],
+                                    (1.0 / gain, -offset / gain), sigma, q, knots,
+                                    _PSI_STEP * math.sqrt(knots * step * ts / fit.tf),
+                                    reweightings=_REWEIGHTINGS)
         except (ValueError, np.linalg.LinAlgError, RuntimeError):
             return None
-        log_psi = np.log(refined.psi)
+        log_psi = np.log(found.psi)
         return log_psi - float(np.mean(log_psi)) if np.all(np.isfinite(log_psi)) else None
 
     def schedule(stages: list[tuple[float, ...]]) -> np.ndarray | None:
@@ -183,13 +182,14 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         refit = run(psi, 2)
         if refit.status != "ok" or any(len(pair) != 2 for pair in refit.time_constants):
             break
-        nxt = schedule([tuple(sorted(pair)) for pair in refit.time_constants])
+        refined = [tuple(sorted(pair)) for pair in refit.time_constants]
+        nxt = schedule(refined)
         if nxt is None:
             break
         candidate = run(nxt)
         if candidate.status != "ok" or not fit_of(candidate).misfit < fit_of(estimate).misfit:
             break
-        psi, estimate, stages = nxt, candidate, [tuple(sorted(p)) for p in refit.time_constants]
+        psi, estimate, stages = nxt, candidate, refined
         lo, hi = np.quantile(psi, [0.05, 0.95])
     # the same evidence the first-order tracking needs: significantly better than what it had
     statistic = flow.evidence(fit_of(chosen[0]).misfit, fit_of(estimate).misfit,
