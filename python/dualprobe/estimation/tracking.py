@@ -402,6 +402,12 @@ def split_noise(
         if not np.all(half.psi > 0.0):
             return math.nan
         logs.append(np.log(half.psi))
-    n = min(logs[0].size, logs[1].size)
-    difference = logs[0][:n] - logs[1][:n]
+    return half_difference(logs[0], logs[1])
+
+
+def half_difference(first: np.ndarray, second: np.ndarray) -> float:
+    """Half the RMS difference of two halves' log psi over their common length: the noise in
+    the whole record's log psi, each half carrying about twice its variance."""
+    n = min(first.size, second.size)
+    difference = first[:n] - second[:n]
     return float(0.5 * np.sqrt(np.mean(difference * difference)))

@@ -203,11 +203,8 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     # first-order one: the even and the odd blocks apart (the same gas and flow, independent
     # noise), half the RMS difference of their log psi; NaN when a half fails
     halves = [map_log(stages, slice(k, None, 2)) for k in (0, 1)]
-    noise = math.nan
-    if halves[0] is not None and halves[1] is not None:
-        n = min(halves[0].size, halves[1].size)
-        noise = float(0.5 * np.sqrt(np.mean((halves[0][:n] - halves[1][:n]) ** 2)))
-    stats["psi_noise"] = noise
+    stats["psi_noise"] = (tracking.half_difference(halves[0], halves[1])
+                          if halves[0] is not None and halves[1] is not None else math.nan)
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 
