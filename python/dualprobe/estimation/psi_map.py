@@ -268,8 +268,9 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     unobservable, and the heavy-tailed steps let it drift without bound; at a 22 s idle start
     of a 30 min record log psi went to -5.4 (a 4 s element read as 1120 s, refused as
     implausible). An exhaust's velocity spans about 10x, so log psi stays within +-0.8 of its
-    median for m up to 0.7: 1 costs that range little beside the data. (About 0 instead, the
-    stages' level, it cost the same record's fit 1.2 -> 9.1 times the noise.)"""
+    median for m up to 0.7: 1 costs that range little beside the data. The median, not 0 (the
+    stages' level), so that stages given at another level do not pull psi (on that record
+    both gave the same fit, 9.1 times the noise; 1.2 with the drift, not yet understood)."""
     problem = _Problem(np.asarray(t, float), (np.asarray(y1, float), np.asarray(y2, float)),
                        (np.asarray(stages1, float), np.asarray(stages2, float)), sigma, q,
                        spacing, step_std)
