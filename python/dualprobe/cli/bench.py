@@ -43,7 +43,7 @@ def register(subparsers: Any) -> None:
         "pipeline: `dualprobe characterise` on simulated recordings of 10 min, 1 h and 6 h at "
         "100 Hz and a 30 min, 10 Hz drive cycle with --flow, in a child process: wall time, "
         "peak resident memory, rows per second; the core's streaming rate against memory "
-        "bandwidth.",
+        "bandwidth; exit 1 when a recording's characterise does not exit 0.",
     )
     parser.add_argument(
         "--section",
@@ -127,13 +127,20 @@ def run(args: argparse.Namespace) -> int:
             print(f"error: {exc}", file=sys.stderr)
             return 1
         _print_throughput(result)
+    failures: list[str] = []
     if args.section in ("pipeline", "all"):
-        from dualprobe.workflows.pipeline import bench_pipeline, pipeline_table
+        from dualprobe.workflows import pipeline
 
-        result["pipeline"] = bench_pipeline()
-        print(pipeline_table(result["pipeline"]))
+        result["pipeline"] = pipeline.bench_pipeline(pipeline.PIPELINE_CASES)
+        print(pipeline.pipeline_table(result["pipeline"]))
+        failures = pipeline.pipeline_failures(result["pipeline"])
     if args.section in ("noise", "all"):
         result["noise_study"] = _noise_study(out, args.seeds)
     if args.json is not None:
         write_json(result, args.json)  # strict JSON: a failed grid point's NaN becomes null
+    if failures:
+        # after the table and the JSON, so that the measurements of the other cases stay
+        more = f" (and {len(failures) - 1} more, in the table)" if len(failures) > 1 else ""
+        print(f"error: bench pipeline: {failures[0]}{more}", file=sys.stderr)
+        return 1
     return 0

@@ -34,6 +34,7 @@ __all__ = [
     "PIPELINE_CASES",
     "PipelineCase",
     "bench_pipeline",
+    "pipeline_failures",
     "pipeline_table",
     "uncertainty_cost",
 ]
@@ -172,6 +173,14 @@ def bench_pipeline(cases: tuple[PipelineCase, ...] = PIPELINE_CASES, *, seed: in
         # linear cost: the time per row at 6 h over that at 1 h stays near 1
         result["time_per_row_6h_vs_1h"] = per_row["6 h at 100 Hz"] / per_row["1 h at 100 Hz"]
     return result
+
+
+def pipeline_failures(result: dict[str, Any]) -> list[str]:
+    """One line per case whose ``characterise`` did not exit 0. The bench fails on any: a
+    refused pipeline recording is a regression, not a slow row (the sheathed no-flow case went
+    to exit 3 on 2026-11-30 after CI had passed, and only the table's exit column showed it)."""
+    return [f"{r['case']}: characterise exited {r['exit_status']} ({r['message']})"
+            for r in result["cases"] if r["exit_status"] != 0]
 
 
 def pipeline_table(result: dict[str, Any]) -> str:
