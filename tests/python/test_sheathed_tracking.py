@@ -15,7 +15,6 @@ from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.psi_map import map_psi
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_independent import record as independent_record
 from field_oracle import oracle
 from test_field_conditions import ADC, NOISE, Case, _oracle_rmse, _record, _rmse
 
@@ -210,23 +209,3 @@ def test_the_cross_relation_fits_normal_equations_solve_as_the_dense_system() ->
         expected = scipy.linalg.solve(h + damp * np.diag(diag), grad, assume_a="sym")
         np.testing.assert_allclose(normal.solve(damp, grad), expected, rtol=0,
                                    atol=1e-9 * np.linalg.norm(expected))
-
-
-def test_a_first_order_psi_that_follows_the_noise_gives_way_to_the_sheathed_path() -> None:
-    """The separate generator's pair with sheaths 0.4 / 0.6 s (20 min, 10 Hz): first-order
-    tracking absorbs the sheaths, its psi 14 % of noise (psi_noise 0.136) at a misfit of 1.08,
-    which the sheathed path (1.03) cannot beat by the misfit; kept, the gas was 4.8x the
-    oracle. Both explain the data, and only the MAP's psi is determined (1.8 %), so the
-    sheathed path is taken: 1.28x measured."""
-    rec = independent_record(7, tau=5.0, ratio=2.5, m=0.5, rate=10.0, sheaths=(0.4, 0.6))
-    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
-    model = result.estimate.flow_model
-    assert model is not None and model.evidence.get("sheathed_path") == 1.0
-    assert 0.0 < model.psi_noise < 0.05
-    assert [len(taus) for taus in result.estimate.time_constants] == [2, 2]
-    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
-                  sheath1=rec.sheath1, sheath2=rec.sheath2, gases=("rw",)).rmse
-    assert result.gas_estimate is not None
-    assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * best  # the issue's bound without flow
-    check = result.model_check
-    assert check is not None and not check.adequate  # the sheathed path's schedule: warned
