@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json is not None:
         write_json(result, args.json)  # strict JSON: a failed grid point's NaN becomes null
     if failures:
-        # after the table and the JSON, so that the measurements of the other cases stay
+        # after the table and the JSON: the other cases' measurements are still reported
         more = f" (and {len(failures) - 1} more, in the table)" if len(failures) > 1 else ""
         print(f"error: bench pipeline: {failures[0]}{more}", file=sys.stderr)
         return 1
