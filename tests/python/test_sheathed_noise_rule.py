@@ -11,10 +11,7 @@ import numpy as np
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record as independent_record
 from field_oracle import oracle
-
-
-def _rmse(a: np.ndarray, b: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((a - b) ** 2)))
+from test_field_independent import _rmse
 
 
 def test_a_first_order_psi_that_follows_the_noise_gives_way_to_found_sheaths() -> None:
