@@ -29,6 +29,7 @@ import numpy as np
 import scipy.linalg
 import scipy.sparse as sp
 
+from dualprobe.estimation.banded import lower_band
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.knots import knot_layout
 
@@ -130,16 +131,6 @@ def _stage_pair(a: float, b: float) -> tuple[float, float]:
     return (a + root) / 2.0, (a - root) / 2.0
 
 
-def _lower_band(matrix: sp.spmatrix) -> np.ndarray:
-    """The lower band of a symmetric sparse matrix in LAPACK's banded storage
-    (``band[i - j, j] = matrix[i, j]``, i >= j)."""
-    coo = sp.tril(matrix).tocoo()
-    offsets = coo.row - coo.col
-    band = np.zeros((int(offsets.max(initial=0)) + 1, matrix.shape[0]))
-    np.add.at(band, (offsets, coo.col), coo.data)
-    return band
-
-
 class _Normal:
     """The damped normal equations of one Levenberg iteration, solved by their structure: six
     dense unknowns (g, o, a1, a2, b1, b2) bordering the knots' block, which is banded (each
@@ -154,7 +145,7 @@ class _Normal:
         self.a = dense.T @ self.wd
         self.b = np.asarray(knots.T @ self.wd)
         block = (knots.T @ sp.diags(weights) @ knots + penalty * rough).tocsc()
-        self.band = _lower_band(block)
+        self.band = lower_band(block)
         self.mean, self.stiff = mean, stiff
         # the damping scales the full matrix's diagonal (the rank-one term's part included)
         self.diag = np.maximum(np.concatenate([np.diag(self.a), self.band[0]

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spl
 
+from dualprobe.estimation.banded import spd_solver
 from dualprobe.estimation.damping import damped_search
 
 __all__ = ["PsiMap", "map_psi"]
@@ -106,6 +106,11 @@ class _Problem:
              (np.tile(np.arange(self.n - 1), 2), np.concatenate([j, right]))),
             shape=(self.n - 1, self.knots))
         self.centre = float(np.mean(y[0]))
+        # the unknowns (states row by row, then the knots) in time order, each knot among the
+        # rows it reaches: the damped normal matrix is then banded (banded.spd_solver)
+        keys = np.concatenate([np.repeat(np.arange(self.n, dtype=float), self.nx),
+                               np.arange(self.knots) * float(spacing) - 0.25])
+        self.order = np.argsort(keys, kind="stable")
 
     def system(self, x: np.ndarray, z: np.ndarray, static: np.ndarray,
                ) -> tuple[np.ndarray, sp.csc_matrix, sp.csc_matrix, np.ndarray]:
@@ -185,20 +190,21 @@ class _Problem:
     def states_for(self, z: np.ndarray, static: np.ndarray, x: np.ndarray) -> np.ndarray:
         """The states that minimise the cost for this psi and static map (linear)."""
         r, a, _, _ = self.system(x, z, static)
-        return x + spl.spsolve((a.T @ a).tocsc(), -(a.T @ r))
+        # the states row by row: block-tridiagonal, banded as they are
+        return x + spd_solver(a.T @ a)(-(a.T @ r))
 
 
 def _damped_step(a: sp.csc_matrix, b: np.ndarray, grad: np.ndarray, damping: float,
-                 sparse_count: int, state_count: int) -> np.ndarray:
+                 sparse_count: int, state_count: int, order: np.ndarray) -> np.ndarray:
     """Solve (J'J + damping diag on the parameters) step = -J'r, with the static map's two
-    dense columns by a Schur complement (the sparse factor stays sparse)."""
+    dense columns by a Schur complement (the sparse factor stays banded, in ``order``)."""
     diag = a.diagonal()
     damp = np.zeros(sparse_count)
     damp[state_count:] = damping * np.maximum(diag[state_count:], 1e-12)
-    lu = spl.splu((a + sp.diags(damp)).tocsc())
+    solve = spd_solver(a + sp.diags(damp), order)
     cross, corner = b[:sparse_count], b[sparse_count:]
     corner = corner + np.diag(damping * np.maximum(np.diag(corner), 1e-12))
-    solved = lu.solve(np.column_stack([-grad[:sparse_count], cross]))
+    solved = solve(np.column_stack([-grad[:sparse_count], cross]))
     base, z = solved[:, 0], solved[:, 1:]
     schur = corner - cross.T @ z
     tail = np.linalg.solve(schur, -grad[sparse_count:] - cross.T @ base)
@@ -211,7 +217,8 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
     """One damped step from ``state`` (states, log psi knots, static map), the states then
     re-solved for the new psi: the new (state, residuals, Jacobians) and its cost."""
     x, z, mapping = state
-    step = _damped_step(normal, coupling, grad, damping, normal.shape[0], x.size)
+    step = _damped_step(normal, coupling, grad, damping, normal.shape[0], x.size,
+                        problem.order)
     z_new = z + step[x.size:x.size + problem.knots]
     map_new = mapping + step[x.size + problem.knots:]
     x_new = problem.states_for(z_new, map_new, x + step[:x.size])

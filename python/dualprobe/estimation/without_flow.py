@@ -264,8 +264,10 @@ def _gas_intensity(t1: np.ndarray, ts: float, tf: float, tau: float) -> float:
 # standard deviations off); time constants that follow the flow misfit by 30-15 000.
 _TRACKING_MISFIT = 4.0
 
-# The sheathed path (_sheathed): its joint MAP solves a sparse system of up to 5 states per row
-# (a 30 min, 10 Hz record: 18 000 rows, 3-6 s; the whole characterisation 15-28 s and 281 MB
+# The sheathed path (_sheathed): its joint MAP solves a banded system of up to 5 states per row
+# (a 30 min, 10 Hz record: 18 000 rows, 3-6 s with SuperLU; by banded Cholesky, estimation/
+# banded.py, a 20 min record's MAP took 15 s of CPU where SuperLU took 23; the whole
+# characterisation 15-28 s and 281 MB
 # peak); it grows about linearly, so longer records run it on block means (_block_means; on
 # 20 min at 50 Hz, blocks to 10 Hz were 1.6-2x faster but up to 1.2x further from the oracle
 # than all rows, so records within the limit use every row).

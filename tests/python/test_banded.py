@@ -1,0 +1,54 @@
+"""The banded Cholesky solver of sparse SPD systems (estimation/banded.py) against dense LAPACK
+solves: in a given order, as the unknowns are, and its SuperLU fallback where the matrix is
+not positive definite."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from dualprobe.estimation.banded import lower_band, spd_solver
+
+
+def _time_series_system(rng: np.random.Generator, rows: int, per_row: int, knots: int,
+                        ) -> tuple[sp.csc_matrix, np.ndarray]:
+    """J'J of a chain (each residual couples a row's unknowns with the next row's) bordered by
+    knots that each reach a run of rows, as in psi_map; and the time order of the unknowns."""
+    n = rows * per_row
+    blocks = []
+    for k in range(rows - 1):
+        block = np.zeros((per_row, n + knots))
+        block[:, k * per_row:(k + 2) * per_row] = rng.normal(size=(per_row, 2 * per_row))
+        block[:, n + min(knots - 1, k * knots // rows)] = rng.normal(size=per_row)
+        blocks.append(block)
+    jac = sp.csc_matrix(np.vstack([*blocks, np.eye(n + knots)]))
+    keys = np.concatenate([np.repeat(np.arange(rows, dtype=float), per_row),
+                           (np.arange(knots) + 0.5) * rows / knots])
+    return (jac.T @ jac).tocsc(), np.argsort(keys, kind="stable")
+
+
+def test_spd_systems_are_solved_as_dense_lapack_solves_them() -> None:
+    # tolerance: both are backward stable and the condition number is about 40, so rounding
+    # stays near 1e-14; 1e-9 only allows for a different order of the sums
+    rng = np.random.default_rng(3)
+    matrix, order = _time_series_system(rng, 200, 3, 20)
+    rhs = rng.normal(size=(matrix.shape[0], 3))
+    dense = np.linalg.solve(matrix.toarray(), rhs)
+    for solve in (spd_solver(matrix, order), spd_solver(matrix)):
+        np.testing.assert_allclose(solve(rhs), dense, rtol=1e-9, atol=1e-9 * np.abs(dense).max())
+    np.testing.assert_allclose(spd_solver(matrix, order)(rhs[:, 0]), dense[:, 0], rtol=1e-9,
+                               atol=1e-9 * np.abs(dense).max())
+    # in time order the band is narrow: a knot sits amid the 11 rows of 3 unknowns it reaches,
+    # so its half-bandwidth is about 6 rows' worth (19 measured); as they are, the knots at
+    # the end reach back to the first rows (about 600)
+    assert lower_band(matrix[order][:, order]).shape[0] <= 25
+    assert lower_band(matrix).shape[0] >= 500
+
+
+def test_a_matrix_that_is_not_positive_definite_is_solved_by_lu() -> None:
+    rng = np.random.default_rng(4)
+    matrix, order = _time_series_system(rng, 50, 2, 5)
+    indefinite = (matrix - sp.identity(matrix.shape[0]) * 2.0 * matrix.diagonal().max()).tocsc()
+    rhs = rng.normal(size=matrix.shape[0])
+    np.testing.assert_allclose(spd_solver(indefinite, order)(rhs),
+                               np.linalg.solve(indefinite.toarray(), rhs), rtol=1e-8)
