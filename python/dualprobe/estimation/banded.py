@@ -17,14 +17,25 @@ import scipy.sparse.linalg as spl
 __all__ = ["lower_band", "spd_solver"]
 
 
-def lower_band(matrix: sp.spmatrix) -> np.ndarray:
+def lower_band(matrix: sp.spmatrix, order: np.ndarray | None = None) -> np.ndarray:
     """The lower band of a symmetric sparse matrix in LAPACK's banded storage
-    (``band[i - j, j] = matrix[i, j]``, i >= j)."""
-    coo = sp.tril(matrix).tocoo()
-    offsets = coo.row - coo.col
-    band = np.zeros((int(offsets.max(initial=0)) + 1, matrix.shape[0]))
-    np.add.at(band, (offsets, coo.col), coo.data)
-    return band
+    (``band[i - j, j] = matrix[i, j]``, i >= j), with the unknowns in ``order`` (a permutation;
+    None: as they are). The permutation is applied to the entries' indices, not to the matrix:
+    permuting a sparse matrix by fancy indexing sorts it twice (a quarter of the joint MAP's
+    time)."""
+    coo = sp.coo_matrix(matrix)
+    row, col = coo.row, coo.col
+    if order is not None:
+        inverse = np.empty_like(order)
+        inverse[order] = np.arange(order.size)
+        row, col = inverse[row], inverse[col]
+    keep = row >= col
+    offset, col = (row - col)[keep], col[keep]
+    size = matrix.shape[0]
+    width = int(offset.max(initial=0)) + 1
+    # bincount sums duplicate entries as the matrix means them (np.add.at did, 5x slower)
+    return np.bincount(offset * size + col, weights=coo.data[keep],
+                       minlength=width * size).reshape(width, size)
 
 
 def spd_solver(matrix: sp.spmatrix, order: np.ndarray | None = None,
@@ -33,11 +44,8 @@ def spd_solver(matrix: sp.spmatrix, order: np.ndarray | None = None,
     in ``order`` (a permutation; None: as they are). Where the matrix is not numerically
     positive definite, or not finite, SuperLU's LU with pivoting instead, so that such systems
     behave as they did before (a nearly singular step is then rejected by its cost)."""
-    permuted = sp.csc_matrix(matrix)
-    if order is not None:
-        permuted = permuted[order][:, order]
     try:
-        factor = scipy.linalg.cholesky_banded(lower_band(permuted), lower=True)
+        factor = scipy.linalg.cholesky_banded(lower_band(matrix, order), lower=True)
     except (np.linalg.LinAlgError, ValueError):
         lu = spl.splu(sp.csc_matrix(matrix))
         return lu.solve

@@ -82,6 +82,16 @@ def _chain(taus: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
     return m, forced(one, zero), forced(zero, one)
 
 
+@dataclass(frozen=True)
+class _Linear:
+    """The residuals at given log psi knots and static map: ``a @ states + c``; ``zeta`` log
+    psi at the intervals' midpoints."""
+
+    a: sp.csc_matrix
+    c: np.ndarray
+    zeta: np.ndarray
+
+
 class _Problem:
     def __init__(self, t: np.ndarray, y: tuple[np.ndarray, np.ndarray],
                  stages: tuple[np.ndarray, np.ndarray], sigma: tuple[float, float], q: float,
@@ -101,6 +111,7 @@ class _Problem:
         j = np.floor(pos).astype(int)
         f = pos - j
         right = np.minimum(j + 1, self.knots - 1)
+        self.pair, self.weight = np.stack([j, right], axis=1), np.stack([1.0 - f, f], axis=1)
         self.hat = sp.csr_matrix(
             (np.concatenate([1.0 - f, f]),
              (np.tile(np.arange(self.n - 1), 2), np.concatenate([j, right]))),
@@ -111,87 +122,114 @@ class _Problem:
         keys = np.concatenate([np.repeat(np.arange(self.n, dtype=float), self.nx),
                                np.arange(self.knots) * float(spacing) - 0.25])
         self.order = np.argsort(keys, kind="stable")
+        self.position, self.count = self._pattern()
 
-    def system(self, x: np.ndarray, z: np.ndarray, static: np.ndarray,
-               ) -> tuple[np.ndarray, sp.csc_matrix, sp.csc_matrix, np.ndarray]:
-        """Residuals and their Jacobians: states (sparse), log psi knots (sparse), static."""
+    def _pattern(self) -> tuple[np.ndarray, int]:
+        """The state Jacobian's fixed sparsity (its CSC indices kept), which value that
+        :meth:`linear` lists goes to each place of CSC storage, and the rows before the knots'
+        priors."""
         n, nx = self.n, self.nx
-        s = x.reshape(n, nx)
-        zeta = self.hat @ z
-        rows: list[np.ndarray] = []
-        cols: list[np.ndarray] = []
-        vals: list[np.ndarray] = []
-        res: list[np.ndarray] = []
-        zrows: list[np.ndarray] = []
-        zvals: list[np.ndarray] = []
         k_all, k = np.arange(n), np.arange(n - 1)
         out1, out2 = self.sizes[0], self.sizes[0] + self.sizes[1]
+        rows = [k_all, n + k_all]
+        cols = [k_all * nx + out1, k_all * nx + out2]
+        count, base = 2 * n, 1
+        for size in self.sizes:
+            for j in range(size):
+                r = count + k
+                rows += [r, r, r] + [r] * size
+                cols += ([(k + 1) * nx + base + j, k * nx, (k + 1) * nx]
+                         + [k * nx + base + i for i in range(size)])
+                count += n - 1
+            base += size
+        rows += [count + k, count + k]
+        cols += [(k + 1) * nx, k * nx]
+        count += n - 1
+        row, col = np.concatenate(rows), np.concatenate(cols)
+        # the CSC position of every value: no two values share a place (one per row and column)
+        where = sp.csc_matrix((np.arange(1.0, row.size + 1.0), (row, col)),
+                              shape=(count + 2 * self.knots - 1, n * nx))
+        self._csc = (where.indices, where.indptr)
+        return where.data.astype(np.int64) - 1, count
+
+    def linear(self, z: np.ndarray, static: np.ndarray) -> _Linear:
+        """Residuals ``a x + c`` for these log psi knots and static map (linear in the states)."""
+        n = self.n
+        zeta = self.hat @ z
         gain, offset = float(static[0]), float(static[1])
-        res.append((s[:, out1] - (self.y[0] - self.centre)) / self.sigma[0])
-        rows.append(k_all)
-        cols.append(k_all * nx + out1)
-        vals.append(np.full(n, 1.0 / self.sigma[0]))
-        x2 = s[:, out2] + self.centre
-        res.append((gain * x2 + offset - self.y[1]) / self.sigma[1])
-        rows.append(n + k_all)
-        cols.append(k_all * nx + out2)
-        vals.append(np.full(n, gain / self.sigma[1]))
-        count = 2 * n
-        base = 1
+        vals = [np.full(n, 1.0 / self.sigma[0]), np.full(n, gain / self.sigma[1])]
         for taus, size in zip(self.stages, self.sizes, strict=True):
-            scaled = [np.exp(-(zeta + d))[:, None] * taus[None, :] for d in (0.0, _DELTA, -_DELTA)]
-            m, g0, g1 = _chain(scaled[0], self.h)
-            up, down = _chain(scaled[1], self.h), _chain(scaled[2], self.h)
+            m, g0, g1 = _chain(np.exp(-zeta)[:, None] * taus[None, :], self.h)
+            for j in range(size):
+                vals += [np.full(n - 1, 1.0 / _EPS), -g0[:, j] / _EPS, -g1[:, j] / _EPS]
+                vals += [-m[:, j, i] / _EPS for i in range(size)]
+        prior = np.broadcast_to(self.prior, (n - 1,))
+        vals += [prior, -prior]
+        data = np.concatenate(vals)
+        total = self.count + 2 * self.knots - 1
+        a = sp.csc_matrix((data[self.position], *self._csc), shape=(total, n * self.nx))
+        c = np.zeros(total)
+        c[:n] = -(self.y[0] - self.centre) / self.sigma[0]
+        c[n:2 * n] = (gain * self.centre + offset - self.y[1]) / self.sigma[1]
+        c[self.count:self.count + self.knots - 1] = (z[1:] - z[:-1]) * self.step
+        c[self.count + self.knots - 1:] = (z - self.centre_z) * self.level
+        return _Linear(a, c, zeta)
+
+    def system(self, x: np.ndarray, z: np.ndarray, static: np.ndarray,
+               linear: _Linear | None = None,
+               ) -> tuple[np.ndarray, sp.csc_matrix, sp.csc_matrix, np.ndarray]:
+        """Residuals and their Jacobians: states (sparse), log psi knots (sparse), static
+        (``linear``: :meth:`linear` at z and static, when already at hand)."""
+        n, nx = self.n, self.nx
+        lin = self.linear(z, static) if linear is None else linear
+        s = x.reshape(n, nx)
+        k = np.arange(n - 1)
+        zrows: list[np.ndarray] = []
+        zvals: list[np.ndarray] = []
+        count, base = 2 * n, 1
+        for taus, size in zip(self.stages, self.sizes, strict=True):
+            up, down = (_chain(np.exp(-(lin.zeta + d))[:, None] * taus[None, :], self.h)
+                        for d in (_DELTA, -_DELTA))
             xs = s[:, base:base + size]
             for j in range(size):
                 def predict(mm: np.ndarray, a0: np.ndarray, a1: np.ndarray, j: int = j,
                             xs: np.ndarray = xs) -> np.ndarray:
                     return (np.einsum("ni,ni->n", mm[:, j, :], xs[:-1]) + a0[:, j] * s[:-1, 0]
                             + a1[:, j] * s[1:, 0])
-                r = count + k
-                res.append((xs[1:, j] - predict(m, g0, g1)) / _EPS)
-                rows += [r, r, r]
-                cols += [(k + 1) * nx + base + j, k * nx, (k + 1) * nx]
-                vals += [np.full(n - 1, 1.0 / _EPS), -g0[:, j] / _EPS, -g1[:, j] / _EPS]
-                for i in range(size):
-                    rows.append(r)
-                    cols.append(k * nx + base + i)
-                    vals.append(-m[:, j, i] / _EPS)
-                zrows.append(r)
+                zrows.append(count + k)
                 zvals.append(-(predict(*up) - predict(*down)) / (2.0 * _DELTA * _EPS))
                 count += n - 1
             base += size
-        res.append((s[1:, 0] - s[:-1, 0]) * self.prior)
-        rows += [count + k, count + k]
-        cols += [(k + 1) * nx, k * nx]
-        vals += [self.prior, -self.prior]
-        count += n - 1
-        res.append((z[1:] - z[:-1]) * self.step)
-        res.append((z - self.centre_z) * self.level)
-        total = count + 2 * self.knots - 1
-        states = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                               shape=(total, n * nx)).tocsc()
+        total = lin.a.shape[0]
+        # each dynamics row's derivative in its interval's log psi, spread over that interval's
+        # two knots (the hat functions)
+        pair, weight = self.pair, self.weight
+        value, row = np.concatenate(zvals), np.concatenate(zrows)
         kk = np.arange(self.knots - 1)
-        drive = sp.csr_matrix(
-            (np.concatenate(zvals), (np.concatenate(zrows), np.tile(k, len(zrows)))),
-            shape=(total, n - 1)) @ self.hat
-        steps = np.concatenate([np.full(kk.size, self.step), np.full(kk.size, -self.step)])
         every = np.arange(self.knots)
-        walk = sp.csr_matrix(
-            (np.concatenate([steps, np.full(self.knots, self.level)]),
-             (np.concatenate([np.tile(count + kk, 2), count + kk.size + every]),
-              np.concatenate([kk + 1, kk, every]))),
-            shape=(total, self.knots))
+        steps = np.broadcast_to(self.step, kk.shape)
+        drive = sp.csr_matrix(
+            (np.concatenate([value * np.tile(weight[:, 0], len(zvals)),
+                             value * np.tile(weight[:, 1], len(zvals)),
+                             steps, -steps, np.full(self.knots, self.level)]),
+             (np.concatenate([row, row, self.count + kk, self.count + kk,
+                              self.count + kk.size + every]),
+              np.concatenate([np.tile(pair[:, 0], len(zvals)), np.tile(pair[:, 1], len(zvals)),
+                              kk + 1, kk, every]))),
+            shape=(total, self.knots)).tocsc()
         static_jac = np.zeros((total, 2))
-        static_jac[n:2 * n, 0] = x2 / self.sigma[1]
+        static_jac[n:2 * n, 0] = (s[:, self.sizes[0] + self.sizes[1]] + self.centre) / self.sigma[1]
         static_jac[n:2 * n, 1] = 1.0 / self.sigma[1]
-        return np.concatenate(res), states, (drive + walk).tocsc(), static_jac
+        return lin.a @ x + lin.c, lin.a, drive, static_jac
 
-    def states_for(self, z: np.ndarray, static: np.ndarray, x: np.ndarray) -> np.ndarray:
-        """The states that minimise the cost for this psi and static map (linear)."""
-        r, a, _, _ = self.system(x, z, static)
+    def states_for(self, z: np.ndarray, static: np.ndarray, x: np.ndarray,
+                   ) -> tuple[np.ndarray, _Linear]:
+        """The states that minimise the cost for this psi and static map (linear; solved as a
+        correction of ``x``, which keeps the rounding to the correction's size), and the
+        linearisation there."""
+        lin = self.linear(z, static)
         # the states row by row: block-tridiagonal, banded as they are
-        return x + spd_solver(a.T @ a)(-(a.T @ r))
+        return x + spd_solver(lin.a.T @ lin.a)(-(lin.a.T @ (lin.a @ x + lin.c))), lin
 
 
 def _damped_step(a: sp.csc_matrix, b: np.ndarray, grad: np.ndarray, damping: float,
@@ -221,8 +259,8 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
                         problem.order)
     z_new = z + step[x.size:x.size + problem.knots]
     map_new = mapping + step[x.size + problem.knots:]
-    x_new = problem.states_for(z_new, map_new, x + step[:x.size])
-    res, a_x, a_z, a_s = problem.system(x_new, z_new, map_new)
+    x_new, lin = problem.states_for(z_new, map_new, x + step[:x.size])
+    res, a_x, a_z, a_s = problem.system(x_new, z_new, map_new, lin)
     return (x_new, z_new, map_new, res, a_x, a_z, a_s), float(res @ res)
 
 
@@ -285,14 +323,14 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
                        spacing, step_std)
     z = np.zeros(problem.knots)
     mapping = np.array(static, dtype=float)
-    x = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
+    x, _ = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
     x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations)
     for _ in range(reweightings):
         gas = x.reshape(problem.n, problem.nx)[:, 0]
         problem.prior = 1.0 / np.sqrt(q * problem.h + np.diff(gas) ** 2)
         problem.step = 1.0 / np.sqrt(step_std ** 2 + np.diff(z) ** 2)
         problem.level, problem.centre_z = 1.0 / level_std, float(np.median(z))
-        x = problem.states_for(z, mapping, x)
+        x, _ = problem.states_for(z, mapping, x)
         x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations)
         done += more
     zeta = problem.hat @ z
