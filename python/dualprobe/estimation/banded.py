@@ -17,6 +17,13 @@ import scipy.sparse.linalg as spl
 __all__ = ["lower_band", "spd_solver"]
 
 
+def _inverse(order: np.ndarray) -> np.ndarray:
+    """The inverse of a permutation: where each unknown goes."""
+    inverse = np.empty_like(order)
+    inverse[order] = np.arange(order.size)
+    return inverse
+
+
 def lower_band(matrix: sp.spmatrix, order: np.ndarray | None = None) -> np.ndarray:
     """The lower band of a symmetric sparse matrix in LAPACK's banded storage
     (``band[i - j, j] = matrix[i, j]``, i >= j), with the unknowns in ``order`` (a permutation;
@@ -26,8 +33,7 @@ def lower_band(matrix: sp.spmatrix, order: np.ndarray | None = None) -> np.ndarr
     coo = sp.coo_matrix(matrix)
     row, col = coo.row, coo.col
     if order is not None:
-        inverse = np.empty_like(order)
-        inverse[order] = np.arange(order.size)
+        inverse = _inverse(order)
         row, col = inverse[row], inverse[col]
     keep = row >= col
     offset, col = (row - col)[keep], col[keep]
@@ -51,8 +57,7 @@ def spd_solver(matrix: sp.spmatrix, order: np.ndarray | None = None,
         return lu.solve
     if order is None:
         return lambda rhs: scipy.linalg.cho_solve_banded((factor, True), rhs)
-    inverse = np.empty_like(order)
-    inverse[order] = np.arange(order.size)
+    inverse = _inverse(order)
 
     def solve(rhs: np.ndarray) -> np.ndarray:
         return scipy.linalg.cho_solve_banded((factor, True), rhs[order])[inverse]

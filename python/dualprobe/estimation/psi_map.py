@@ -111,23 +111,25 @@ class _Problem:
         j = np.floor(pos).astype(int)
         f = pos - j
         right = np.minimum(j + 1, self.knots - 1)
+        # each interval's two knots and their hat-function weights
         self.pair, self.weight = np.stack([j, right], axis=1), np.stack([1.0 - f, f], axis=1)
-        self.hat = sp.csr_matrix(
-            (np.concatenate([1.0 - f, f]),
-             (np.tile(np.arange(self.n - 1), 2), np.concatenate([j, right]))),
-            shape=(self.n - 1, self.knots))
         self.centre = float(np.mean(y[0]))
         # the unknowns (states row by row, then the knots) in time order, each knot among the
         # rows it reaches: the damped normal matrix is then banded (banded.spd_solver)
         keys = np.concatenate([np.repeat(np.arange(self.n, dtype=float), self.nx),
                                np.arange(self.knots) * float(spacing) - 0.25])
         self.order = np.argsort(keys, kind="stable")
-        self.position, self.count = self._pattern()
+        self.position, self.csc, self.count = self._pattern()
+        self.total = self.count + 2 * self.knots - 1  # the residuals: then the knots' priors
 
-    def _pattern(self) -> tuple[np.ndarray, int]:
-        """The state Jacobian's fixed sparsity (its CSC indices kept), which value that
-        :meth:`linear` lists goes to each place of CSC storage, and the rows before the knots'
-        priors."""
+    def zeta(self, z: np.ndarray) -> np.ndarray:
+        """log psi at the intervals' midpoints from the knots' (linear between them)."""
+        return self.weight[:, 0] * z[self.pair[:, 0]] + self.weight[:, 1] * z[self.pair[:, 1]]
+
+    def _pattern(self) -> tuple[np.ndarray, tuple[np.ndarray, np.ndarray], int]:
+        """The state Jacobian's fixed sparsity: which value that :meth:`linear` lists goes to
+        each place of CSC storage, the CSC indices and pointers, and the rows before the
+        knots' priors."""
         n, nx = self.n, self.nx
         k_all, k = np.arange(n), np.arange(n - 1)
         out1, out2 = self.sizes[0], self.sizes[0] + self.sizes[1]
@@ -149,13 +151,12 @@ class _Problem:
         # the CSC position of every value: no two values share a place (one per row and column)
         where = sp.csc_matrix((np.arange(1.0, row.size + 1.0), (row, col)),
                               shape=(count + 2 * self.knots - 1, n * nx))
-        self._csc = (where.indices, where.indptr)
-        return where.data.astype(np.int64) - 1, count
+        return where.data.astype(np.int64) - 1, (where.indices, where.indptr), count
 
     def linear(self, z: np.ndarray, static: np.ndarray) -> _Linear:
         """Residuals ``a x + c`` for these log psi knots and static map (linear in the states)."""
         n = self.n
-        zeta = self.hat @ z
+        zeta = self.zeta(z)
         gain, offset = float(static[0]), float(static[1])
         vals = [np.full(n, 1.0 / self.sigma[0]), np.full(n, gain / self.sigma[1])]
         for taus, size in zip(self.stages, self.sizes, strict=True):
@@ -166,9 +167,8 @@ class _Problem:
         prior = np.broadcast_to(self.prior, (n - 1,))
         vals += [prior, -prior]
         data = np.concatenate(vals)
-        total = self.count + 2 * self.knots - 1
-        a = sp.csc_matrix((data[self.position], *self._csc), shape=(total, n * self.nx))
-        c = np.zeros(total)
+        a = sp.csc_matrix((data[self.position], *self.csc), shape=(self.total, n * self.nx))
+        c = np.zeros(self.total)
         c[:n] = -(self.y[0] - self.centre) / self.sigma[0]
         c[n:2 * n] = (gain * self.centre + offset - self.y[1]) / self.sigma[1]
         c[self.count:self.count + self.knots - 1] = (z[1:] - z[:-1]) * self.step
@@ -200,7 +200,6 @@ class _Problem:
                 zvals.append(-(predict(*up) - predict(*down)) / (2.0 * _DELTA * _EPS))
                 count += n - 1
             base += size
-        total = lin.a.shape[0]
         # each dynamics row's derivative in its interval's log psi, spread over that interval's
         # two knots (the hat functions)
         pair, weight = self.pair, self.weight
@@ -216,8 +215,8 @@ class _Problem:
                               self.count + kk.size + every]),
               np.concatenate([np.tile(pair[:, 0], len(zvals)), np.tile(pair[:, 1], len(zvals)),
                               kk + 1, kk, every]))),
-            shape=(total, self.knots)).tocsc()
-        static_jac = np.zeros((total, 2))
+            shape=(self.total, self.knots)).tocsc()
+        static_jac = np.zeros((self.total, 2))
         static_jac[n:2 * n, 0] = (s[:, self.sizes[0] + self.sizes[1]] + self.centre) / self.sigma[1]
         static_jac[n:2 * n, 1] = 1.0 / self.sigma[1]
         return lin.a @ x + lin.c, lin.a, drive, static_jac
@@ -333,6 +332,6 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
         x, _ = problem.states_for(z, mapping, x)
         x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations)
         done += more
-    zeta = problem.hat @ z
+    zeta = problem.zeta(z)
     psi = np.exp(np.interp(np.arange(problem.n), np.arange(problem.n - 1) + 0.5, zeta))
     return PsiMap(psi, (float(mapping[0]), float(mapping[1])), cost, done)
