@@ -32,6 +32,7 @@ import scipy.sparse as sp
 from dualprobe.estimation.banded import lower_band
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.knots import knot_layout
+from dualprobe.estimation.reuse import reused
 
 __all__ = ["CrossFit", "fit_cross_relation"]
 
@@ -219,6 +220,7 @@ def _levenberg(cols: _Columns, p: np.ndarray, weights: np.ndarray, penalty: floa
     return p, f, done
 
 
+@reused
 def fit_cross_relation(t1: np.ndarray, t2: np.ndarray, ts: float, tf: float,
                        first_order: tuple[float, float], static: tuple[float, float],
                        iterations: int = 30) -> CrossFit:

@@ -36,6 +36,7 @@ import scipy.sparse as sp
 
 from dualprobe.estimation.banded import spd_solver
 from dualprobe.estimation.damping import damped_search
+from dualprobe.estimation.reuse import reused
 
 __all__ = ["PsiMap", "map_psi"]
 
@@ -290,6 +291,7 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
     return x, z, mapping, cost, done
 
 
+@reused
 def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[float],
             stages2: Sequence[float], static: tuple[float, float], sigma: tuple[float, float],
             q: float, spacing: int, step_std: float, iterations: int = 30,

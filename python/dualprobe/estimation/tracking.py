@@ -38,6 +38,7 @@ from dualprobe.estimation.knots import (
     knot_system,
     sparse_system,
 )
+from dualprobe.estimation.reuse import reused
 
 
 class TrackingError(RuntimeError):
@@ -251,6 +252,7 @@ def _setup(t1: np.ndarray, ts: float, tf: float, order: int,
     return spacing, math.ceil(_TAIL * tf / ts), row_filter, _free_responses(ts, tf, m, t1.size)
 
 
+@reused
 def search_static(
     t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, sigma: tuple[float, float],
     start: tuple[float, float], max_evaluations: int = 80,
@@ -310,6 +312,7 @@ def _floored(psi: np.ndarray) -> np.ndarray:
     return np.maximum(psi, float(np.quantile(psi[~low], _UNPINNED_SHARE)))
 
 
+@reused
 def track(
     t1: np.ndarray,
     t2: np.ndarray,
@@ -378,6 +381,7 @@ def _track(
                     spacing_of_tf)
 
 
+@reused
 def split_noise(
     t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, sigma: tuple[float, float],
     static: tuple[float, float], effective_rows: float, spacing_of_tf: float | None = None,

@@ -285,7 +285,8 @@ _ALTERNATIONS = 3  # MAP psi <-> the engine's order-2 stages
 # 0.045-0.076 (README) stay warned by PSI_NOISE_LIMIT. Tried at the limit itself (2026-11-30):
 # one pair at 0.078 went 5.3x -> 2.8x, one of five at 0.055-0.083 1.97x -> 2.03x, the others
 # unchanged. Measured again with the stage condition (README): one sheathed pair 6.3x -> 1.9x,
-# one unsheathed 1.23x -> 1.36x, and unsheathed pairs 10-18 times slower; not lowered.
+# one unsheathed 1.23x -> 1.36x, and unsheathed pairs 10-18 times slower; not lowered. Again
+# with a fallback's steps reused (estimation.reuse, 2026-12-01): failed tries 2.2-3.7x the time.
 _SHEATH_SUSPECT = 2.0 * PSI_NOISE_LIMIT
 _GAS_SAFETY = 4.0  # see _gas_intensity
 

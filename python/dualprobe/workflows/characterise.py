@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
+from dualprobe.estimation.reuse import Kept
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
@@ -183,13 +184,17 @@ def characterise_arrays(
                                            time)
     _check_excitation(t1, t2, columns)
     svf = method in ("auto", "svf")
+    # a first-order fallback repeats the order-independent steps on the same readings (the
+    # no-flow tracking, static search, MAPs of psi): kept from the first try (estimation.reuse)
+    kept = Kept()
 
     def estimate_at(fit_order: int) -> PairEstimate:
-        return characterise_pair(
-            t1, t2, ts, method=method, order=fit_order, hysteresis=hysteresis, noise_std=sigma,
-            flow=flow if svf else None, flow_column=flow_column, track=track if svf else "off",
-            uncertainty=uncertainty and svf,
-        )
+        with kept:
+            return characterise_pair(
+                t1, t2, ts, method=method, order=fit_order, hysteresis=hysteresis,
+                noise_std=sigma, flow=flow if svf else None, flow_column=flow_column,
+                track=track if svf else "off", uncertainty=uncertainty and svf,
+            )
 
     estimate = estimate_at(fit_order)
     if flow is not None and not svf:
