@@ -202,10 +202,36 @@ def test_the_cross_relation_fits_normal_equations_solve_as_the_dense_system() ->
                    + penalty * rough.toarray() + stiff * np.outer(mean, mean)]])
     diag = np.maximum(np.diag(h), 1e-12)
     grad = rng.standard_normal(6 + k) * np.sqrt(diag)
-    normal = crossfit._Normal(dense, knots, weights, rough, penalty, mean, stiff)
+    normal = crossfit._Normal(dense, knots, weights, rough, penalty, mean, stiff, cols.layout)
     np.testing.assert_allclose(normal.diag, diag, rtol=1e-12)
     assert normal.band.shape[0] < k // 4  # banded indeed: the point of the structure
     for damp in (1e-9, 1e-3, 1.0):
         expected = scipy.linalg.solve(h + damp * np.diag(diag), grad, assume_a="sym")
         np.testing.assert_allclose(normal.solve(damp, grad), expected, rtol=0,
                                    atol=1e-9 * np.linalg.norm(expected))
+
+
+def test_the_knot_gram_from_windows_is_the_sparse_product() -> None:
+    """crossfit's knot block K' W K, computed from the knot columns as dense windows (one
+    row-wise dot per diagonal), is the sparse product's lower band, the record's first and
+    last knots (windows reaching outside the record) included, with weights that vary by
+    row. Both sum the same products, so they agree to rounding (1e-13 of the largest entry)."""
+    import scipy.sparse as sp
+
+    from dualprobe.estimation import crossfit
+    from dualprobe.estimation.banded import lower_band
+
+    rec = _sheathed_record(10.0, 300.0)
+    ts, tf = rec.ts, 2.0
+    cols = crossfit._Columns(rec.t1, rec.t2, ts, tf, round(0.5 * tf / ts))
+    rng = np.random.default_rng(3)
+    weights = rng.uniform(0.0, 2.0, rec.t1.size)
+    weights[:400] = 0.0
+    knots = (0.9 * cols.k2 - cols.k1 + 0.3 * cols.y1).tocsc()
+    expected = lower_band((knots.T @ sp.diags(weights) @ knots).tocsc())
+    band = crossfit._gram_band(knots, weights, cols.layout)
+    rows = max(band.shape[0], expected.shape[0])
+    padded = [np.vstack([b, np.zeros((rows - b.shape[0], b.shape[1]))]) for b in (band, expected)]
+    np.testing.assert_allclose(padded[0], padded[1], rtol=0,
+                               atol=1e-13 * np.max(np.abs(expected)))
+    assert band.shape[0] < cols.knots // 4  # banded: the windows overlap few neighbours

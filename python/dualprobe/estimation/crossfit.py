@@ -84,6 +84,38 @@ def _knot_columns(signal: np.ndarray, spacing: int, tail: int, hold: str, output
                          shape=(n, knots))
 
 
+@dataclass(frozen=True)
+class _Layout:
+    """Where each knot column lies (``knots.knot_layout``): column j on rows ``start[j]`` to
+    ``start[j] + length - 1`` (those in the record), ``start[j + 1] = start[j] + spacing``."""
+
+    spacing: int
+    length: int
+    start: np.ndarray
+
+
+def _gram_band(knots: sp.csc_matrix, weights: np.ndarray, layout: _Layout) -> np.ndarray:
+    """The lower band of the knot columns' weighted Gram K' W K in LAPACK's banded storage
+    (``band[d, j]`` = <column j + d, W column j>), from the columns as dense windows: one
+    row-wise dot per diagonal. The sparse product took 3.3x as long (0.39 s against 0.12 s on
+    24,000 rows, 729 knots, 67 a row: 14 of the fit's 20 s on a 20 Hz record)."""
+    k = knots.shape[1]
+    knots.sum_duplicates()  # (one entry per row and column: assigned, not summed, below)
+    column = np.repeat(np.arange(k), np.diff(knots.indptr))
+    where = knots.indices - layout.start[column]
+    window = np.zeros((k, layout.length))
+    window[column, where] = knots.data
+    weighted = np.zeros((k, layout.length))
+    weighted[column, where] = knots.data * weights[knots.indices]
+    width = min(k, -(-layout.length // layout.spacing))  # diagonals whose windows overlap
+    band = np.zeros((width, k))
+    for d in range(width):
+        shift = d * layout.spacing
+        band[d, : k - d] = np.einsum("ij,ij->i", window[d:, : layout.length - shift],
+                                     weighted[: k - d, shift:])
+    return band
+
+
 class _Columns:
     def __init__(self, t1: np.ndarray, t2: np.ndarray, ts: float, tf: float, spacing: int) -> None:
         from dualprobe import _core
@@ -98,6 +130,8 @@ class _Columns:
             d[:-1] = np.diff(x) * (tf / ts)  # the derivative as a zero-order-held drive
             drives.append(_knot_columns(d, spacing, tail, "zoh", 1, ts, tf))
         self.y1, self.y2 = drives
+        _, length, start = knot_layout(t1.size, spacing, tail)
+        self.layout = _Layout(spacing, length, start)
         self.k1 = _knot_columns(t1 - self.ref, spacing, tail, "foh", 0, ts, tf)
         self.k2 = _knot_columns(t2 - self.ref, spacing, tail, "foh", 0, ts, tf)
         self.k0 = _knot_columns(np.ones(t1.size), spacing, tail, "foh", 0, ts, tf)
@@ -141,12 +175,17 @@ class _Normal:
     72 of the 188 s a 20-min record took)."""
 
     def __init__(self, dense: np.ndarray, knots: sp.csc_matrix, weights: np.ndarray,
-                 rough: sp.spmatrix, penalty: float, mean: np.ndarray, stiff: float) -> None:
+                 rough: sp.spmatrix, penalty: float, mean: np.ndarray, stiff: float,
+                 layout: _Layout) -> None:
         self.wd = dense * weights[:, None]  # the dense columns weighted (the gradient's too)
         self.a = dense.T @ self.wd
         self.b = np.asarray(knots.T @ self.wd)
-        block = (knots.T @ sp.diags(weights) @ knots + penalty * rough).tocsc()
-        self.band = lower_band(block)
+        band = _gram_band(knots, weights, layout)
+        smooth = lower_band(penalty * rough)
+        if band.shape[0] < smooth.shape[0]:
+            band = np.vstack([band, np.zeros((smooth.shape[0] - band.shape[0], band.shape[1]))])
+        band[: smooth.shape[0]] += smooth
+        self.band = band
         self.mean, self.stiff = mean, stiff
         # the damping scales the full matrix's diagonal (the rank-one term's part included)
         self.diag = np.maximum(np.concatenate([np.diag(self.a), self.band[0]
@@ -193,7 +232,7 @@ def _levenberg(cols: _Columns, p: np.ndarray, weights: np.ndarray, penalty: floa
         done += 1
         r, psi, phi = cols.residual(p)
         dense, knots = cols.jacobian(p, psi, phi)
-        normal = _Normal(dense, knots, weights, rough, penalty, mean, stiff)
+        normal = _Normal(dense, knots, weights, rough, penalty, mean, stiff, cols.layout)
         z = p[6:]
         grad = np.concatenate([normal.wd.T @ r,
                                knots.T @ (weights * r) + penalty * (rough @ z)
