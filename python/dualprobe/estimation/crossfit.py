@@ -31,7 +31,7 @@ import scipy.sparse as sp
 
 from dualprobe.estimation.banded import lower_band
 from dualprobe.estimation.damping import damped_search
-from dualprobe.estimation.knots import knot_layout
+from dualprobe.estimation.knots import KnotLayout, knot_layout, overlap_band
 from dualprobe.estimation.reuse import reused
 
 __all__ = ["CrossFit", "fit_cross_relation"]
@@ -58,61 +58,54 @@ class CrossFit:
     iterations: int
 
 
-def _knot_columns(signal: np.ndarray, spacing: int, tail: int, hold: str, output: int,
+_WINDOW_ELEMENTS = 2_000_000  # knot-column window entries a batch (16 MB of doubles)
+
+
+def _knot_columns(signal: np.ndarray, layout: KnotLayout, hold: str, output: int,
                   ts: float, tf: float) -> sp.csc_matrix:
     """Filtered hat-weighted copies of ``signal``, one sparse column per knot."""
     from dualprobe import _core
 
-    n = signal.size
-    knots, length, start = knot_layout(n, spacing, tail)
-    positions = np.arange(length)
     rows, cols, vals = [], [], []
-    batch = max(1, 2_000_000 // length)
-    for first in range(0, knots, batch):
-        last = min(first + batch, knots)
-        pos = start[first:last, None] + positions[None, :]
-        valid = (pos >= 0) & (pos < n)
-        clipped = np.clip(pos, 0, n - 1)
-        centre = start[first:last, None] + spacing
-        hat = np.where(valid, np.maximum(0.0, 1.0 - np.abs(pos - centre) / spacing), 0.0)
+    for first, last, _ in layout.batches(_WINDOW_ELEMENTS):
+        pos, valid, clipped, hat = layout.hats(first, last)
         filtered = _core.svf_filter(hat * signal[clipped], ts, tf, _ORDER, hold)[:, output, :]
         owner = np.broadcast_to(np.arange(first, last)[:, None], pos.shape)
         rows.append(pos[valid])
         cols.append(owner[valid])
         vals.append(filtered[valid])
     return sp.csc_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(n, knots))
+                         shape=(signal.size, layout.knots))
 
 
-@dataclass(frozen=True)
-class _Layout:
-    """Where each knot column lies (``knots.knot_layout``): column j on rows ``start[j]`` to
-    ``start[j] + length - 1`` (those in the record), ``start[j + 1] = start[j] + spacing``."""
+def _windows(knots: sp.csc_matrix, layout: KnotLayout, first: int, last: int,
+             scale: np.ndarray) -> np.ndarray:
+    """Columns [first, last) of ``knots`` (canonical: one entry per row and column) as dense
+    windows over their layout rows, each entry times ``scale`` of its row."""
+    lo, hi = knots.indptr[first], knots.indptr[last]
+    column = np.repeat(np.arange(last - first), np.diff(knots.indptr[first : last + 1]))
+    rows = knots.indices[lo:hi]
+    window = np.zeros((last - first, layout.length))
+    window[column, rows - layout.start[first + column]] = knots.data[lo:hi] * scale[rows]
+    return window
 
-    spacing: int
-    length: int
-    start: np.ndarray
 
-
-def _gram_band(knots: sp.csc_matrix, weights: np.ndarray, layout: _Layout) -> np.ndarray:
+def _gram_band(knots: sp.csc_matrix, weights: np.ndarray, layout: KnotLayout) -> np.ndarray:
     """The lower band of the knot columns' weighted Gram K' W K in LAPACK's banded storage
-    (``band[d, j]`` = <column j + d, W column j>), from the columns as dense windows: one
-    row-wise dot per diagonal. The sparse product took 3.3x as long (0.39 s against 0.12 s on
-    24,000 rows, 729 knots, 67 a row: 14 of the fit's 20 s on a 20 Hz record)."""
+    (``band[d, j]`` = <column j + d, W column j>), from the columns as dense windows
+    (:func:`knots.overlap_band`, batched as the columns were built). The sparse product took
+    14 of the fit's 20 s on a 20 Hz record."""
+    if not knots.has_canonical_format:  # windows are assigned, so duplicates must be summed
+        knots = knots.copy()
+        knots.sum_duplicates()
     k = knots.shape[1]
-    knots.sum_duplicates()  # (one entry per row and column: assigned, not summed, below)
-    column = np.repeat(np.arange(k), np.diff(knots.indptr))
-    where = knots.indices - layout.start[column]
-    window = np.zeros((k, layout.length))
-    window[column, where] = knots.data
-    weighted = np.zeros((k, layout.length))
-    weighted[column, where] = knots.data * weights[knots.indices]
-    width = min(k, -(-layout.length // layout.spacing))  # diagonals whose windows overlap
+    width = min(k, layout.reach)
     band = np.zeros((width, k))
-    for d in range(width):
-        shift = d * layout.spacing
-        band[d, : k - d] = np.einsum("ij,ij->i", window[d:, : layout.length - shift],
-                                     weighted[: k - d, shift:])
+    ones = np.ones(knots.shape[0])
+    for first, last, extended in layout.batches(_WINDOW_ELEMENTS):
+        weighted = _windows(knots, layout, first, extended, weights)
+        band[:, first:last] = overlap_band(weighted, _windows(knots, layout, first, extended, ones),
+                                           layout.spacing, width, last - first)
     return band
 
 
@@ -120,7 +113,7 @@ class _Columns:
     def __init__(self, t1: np.ndarray, t2: np.ndarray, ts: float, tf: float, spacing: int) -> None:
         from dualprobe import _core
 
-        tail = math.ceil(_TAIL * tf / ts)
+        self.layout = knot_layout(t1.size, spacing, math.ceil(_TAIL * tf / ts))
         self.ref = float(t1[0])
         self.x1, self.x2 = (_core.svf_filter(x - x[0], ts, tf, _ORDER, "foh")[0][1]
                             for x in (t1, t2))
@@ -128,14 +121,12 @@ class _Columns:
         for x in (t1, t2):
             d = np.zeros(x.size)
             d[:-1] = np.diff(x) * (tf / ts)  # the derivative as a zero-order-held drive
-            drives.append(_knot_columns(d, spacing, tail, "zoh", 1, ts, tf))
+            drives.append(_knot_columns(d, self.layout, "zoh", 1, ts, tf))
         self.y1, self.y2 = drives
-        _, length, start = knot_layout(t1.size, spacing, tail)
-        self.layout = _Layout(spacing, length, start)
-        self.k1 = _knot_columns(t1 - self.ref, spacing, tail, "foh", 0, ts, tf)
-        self.k2 = _knot_columns(t2 - self.ref, spacing, tail, "foh", 0, ts, tf)
-        self.k0 = _knot_columns(np.ones(t1.size), spacing, tail, "foh", 0, ts, tf)
-        self.knots = self.k0.shape[1]
+        self.k1 = _knot_columns(t1 - self.ref, self.layout, "foh", 0, ts, tf)
+        self.k2 = _knot_columns(t2 - self.ref, self.layout, "foh", 0, ts, tf)
+        self.k0 = _knot_columns(np.ones(t1.size), self.layout, "foh", 0, ts, tf)
+        self.knots = self.layout.knots
 
     def residual(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         g, o, a1, a2, b1, b2 = p[:6]
@@ -176,15 +167,14 @@ class _Normal:
 
     def __init__(self, dense: np.ndarray, knots: sp.csc_matrix, weights: np.ndarray,
                  rough: sp.spmatrix, penalty: float, mean: np.ndarray, stiff: float,
-                 layout: _Layout) -> None:
+                 layout: KnotLayout) -> None:
         self.wd = dense * weights[:, None]  # the dense columns weighted (the gradient's too)
         self.a = dense.T @ self.wd
         self.b = np.asarray(knots.T @ self.wd)
         band = _gram_band(knots, weights, layout)
-        smooth = lower_band(penalty * rough)
-        if band.shape[0] < smooth.shape[0]:
-            band = np.vstack([band, np.zeros((smooth.shape[0] - band.shape[0], band.shape[1]))])
-        band[: smooth.shape[0]] += smooth
+        # the random walk couples neighbours only: two diagonals, within the knot band (a
+        # window spans more than two spacings)
+        band[:2] += lower_band(penalty * rough)
         self.band = band
         self.mean, self.stiff = mean, stiff
         # the damping scales the full matrix's diagonal (the rank-one term's part included)
