@@ -75,6 +75,11 @@ class FlowModel:
         :mod:`dualprobe.estimation.without_flow`); NaN where no split was made."""
         return float(self.evidence.get("psi_noise", math.nan))
 
+    @property
+    def sheathed_path(self) -> bool:
+        """Tracked through sheath stages without a flow signal (``without_flow._sheathed``)."""
+        return bool(self.evidence.get("sheathed_path"))
+
 
 def fit_of(estimate: PairEstimate) -> Fit:
     fit = estimate.details.get("fit")

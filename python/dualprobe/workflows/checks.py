@@ -186,7 +186,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
                 misfits = True
                 reasons.append(f"sensor {i + 1}'s reading departs from the model by "
                                f"{ratio:.3g} times its noise (RMS)")
-    if not misfits and model is not None and model.evidence.get("sheathed_path"):
+    if not misfits and model is not None and model.sheathed_path:
         # (a misfit is warned already) nothing in the data measures this schedule's bias:
         # its even/odd split is 1.4-2.8 % and its misfit at or below the noise on pairs from
         # 1.3x to 3x the oracle (the sheathed cases of tests/python/test_field_conditions.py)
@@ -213,11 +213,11 @@ def unsettled_stages(estimate: PairEstimate) -> list[tuple[int, float]]:
     5 % (misfit 0.89 against the first-order tracking's 1.51) were dropped for first order,
     6.02x the oracle where the sheathed result is 2.03x; 0.55 / 0.62 s found at 0.50 / 0.56 s
     moving 10 % and 9 %: 5.69x -> 1.72x (field_sweep_independent.py 53 8, 50 8; README)."""
+    model = estimate.flow_model
+    if model is not None and model.sheathed_path:
+        return []
     conf = estimate.confidence
     _, statistic = _misfit(estimate)
-    model = estimate.flow_model
-    if model is not None and model.evidence.get("sheathed_path"):
-        return []
     if conf is None or estimate.order != 2 or not statistic <= GAP_THRESHOLD:
         return []
     found = []
