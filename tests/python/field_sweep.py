@@ -49,10 +49,12 @@ def _report(label: str, rec: sim.FieldRecording, target: np.ndarray, best: float
     tau1, tau2 = result.time_constants_per_row()
     errors = [float(np.sqrt(np.mean((est / truth - 1.0) ** 2)))
               for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2))]
+    worst = max(float(np.exp(np.max(np.abs(np.log(est / truth)))))
+                for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2)))
     exponent = f" m {model.exponent:.3f}" if with_flow and model else ""
     orders = [len(taus) for taus in result.estimate.time_constants]
     print(verdict, label, model.kind if model else None, exponent,
-          f"tau rms {errors[0]:.3f} {errors[1]:.3f} orders {orders} "
+          f"tau rms {errors[0]:.3f} {errors[1]:.3f} worst {worst:.1f}x orders {orders} "
           f"gas {ours:.2f} raw {raw:.2f} "
           f"oracle {best:.2f} ({ours / best:.2f}x) adequate {result.model_check.adequate} "
           f"{time.perf_counter() - start:.1f} s", flush=True)

@@ -61,6 +61,11 @@ def sweep(seed: int, count: int) -> None:
         model = result.estimate.flow_model
         evidence = model.evidence if model is not None else {}
         verdict = "BAD" if ours > raw else ("within" if ours <= 2.5 * best else "weak")
+        # per-row element time constants: RMS relative error and the worst row's factor
+        per_row = result.time_constants_per_row()
+        ratios = np.concatenate([per_row[0] / rec.tau1, per_row[1] / rec.tau2])
+        tau_rms = float(np.sqrt(np.mean((ratios - 1.0) ** 2)))
+        worst = float(np.exp(np.max(np.abs(np.log(ratios)))))
         adequate = result.model_check.adequate
         flag = " DISHONEST" if ours > 2.5 * best and adequate else ""
         print(f"{verdict}{flag} {label}: {ours / best:.2f}x (oracle {best:.3f} K, raw / ours "
@@ -69,7 +74,8 @@ def sweep(seed: int, count: int) -> None:
               f"{evidence.get('psi_noise', math.nan):.3f} misfit "
               f"{evidence.get('misfit_tracked', math.nan):.2f} orders "
               f"{[len(x) for x in result.estimate.time_constants]} adequate {adequate} fits "
-              f"{result.model_check.fits} {time.perf_counter() - start:.0f} s", flush=True)
+              f"{result.model_check.fits} tau rms {tau_rms:.3f} worst {worst:.1f}x "
+              f"{time.perf_counter() - start:.0f} s", flush=True)
 
 
 if __name__ == "__main__":

@@ -38,3 +38,33 @@ def test_an_idle_start_leaves_the_sheathed_path_s_psi_where_it_was() -> None:
     best = oracle(rec.t, rec.t1, rec.t2, rec.tg, rec.tau1, rec.tau2, (NOISE, NOISE),
                   sheath1=rec.sheath1, gases=("rw",)).rmse
     assert ours <= 2.5 * best, ours / best  # issue 11's bound without the flow (1.33x measured)
+
+
+def test_where_the_readings_cross_the_tracked_time_constants_stay_near_the_truth() -> None:
+    """A sheathed pair of the field sweep (``field_sweep.py 7 12 noflow``, case 810: m 0.68,
+    ratio 3.81, a 0.5 s sheath on the fast element). Where the two readings cross while the gas
+    holds, psi is unobservable for a few seconds; with the level prior at sd 1 the MAP's psi
+    went 17x above the truth and back there (the 3.3 s element read as 56 s, the per-row time
+    constants 74 % RMS off; the gas unaffected), written so into the ``--output`` CSV."""
+    from scipy.ndimage import maximum_filter1d, minimum_filter1d
+
+    from test_field_conditions import Case, _record
+
+    rec = _record(Case(0.68, 3.81, (0.5, 0.0), (1.0, 1.0), 810))
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.evidence.get("sheathed_path") == 1.0
+    tau1, tau2 = result.time_constants_per_row()
+    ratio = np.concatenate([tau1 / rec.tau1, tau2 / rec.tau2])
+    # measured 0.13 (sd 1: 0.74); the bound sits between, well under the old excursions
+    rms = float(np.sqrt(np.mean((ratio - 1.0) ** 2)))
+    assert rms < 0.25, rms
+    # Rows whose true time constant holds within 10 % for 2 s either side (71 % of them):
+    # measured 0.41-2.01x the truth (sd 1: up to 16.8x). Within a load step the flow and
+    # the gas move at once and psi's timing is off by a few samples (down to 0.04x for
+    # under a second), which this does not bound.
+    log_tau = np.log(rec.tau1)
+    width = 2 * round(2.0 / rec.ts) + 1
+    steady = maximum_filter1d(log_tau, width) - minimum_filter1d(log_tau, width) < np.log(1.1)
+    held = tau1[steady] / rec.tau1[steady]
+    assert 1.0 / 3.0 < held.min() and held.max() < 3.0, (held.min(), held.max())

@@ -295,7 +295,7 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
 def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[float],
             stages2: Sequence[float], static: tuple[float, float], sigma: tuple[float, float],
             q: float, spacing: int, step_std: float, iterations: int = 30,
-            reweightings: int = 0, level_std: float = 1.0) -> PsiMap:
+            reweightings: int = 0, level_std: float = 0.5) -> PsiMap:
     """The MAP schedule (module docstring). ``stages_i``: stage time constants at psi = 1, the
     stage that sees the gas first; ``static`` the start of y2 = gain x + offset; ``q`` the gas
     random walk's intensity (K^2/s); ``spacing`` rows between knots; ``step_std`` the prior
@@ -314,7 +314,12 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     unobservable, and the heavy-tailed steps let it drift without bound; at a 22 s idle start
     of a 30 min record log psi went to -5.4 (a 4 s element read as 1120 s, refused as
     implausible). An exhaust's velocity spans about 10x, so log psi stays within +-0.8 of its
-    median for m up to 0.7: 1 costs that range little beside the data. The median, not 0 (the
+    median for m up to 0.7: sd 0.5 costs that range at most 2.6 per knot, little beside the
+    rows that observe it. Not 1 (until 2026-12-02): where the two readings cross while the
+    gas holds (y1 - y2 and both slopes near 0), psi is unobservable for a few seconds, and
+    there it went 17x above the truth and back (a 3.3 s element read as 56 s, the per-row
+    time constants 74 % RMS off, the gas unaffected at 2.00x the oracle); at 0.5: 13 %, and
+    36 sweep pairs within 0.03x of before or better (README). The median, not 0 (the
     stages' level), so that stages given at another level do not pull psi (on that record
     both gave the same fit, 9.1 times the noise; the drifting psi's 1.2 was an artefact: its
     1/psi up to 230 at the start filled the misfit's noise term, and without those 30 s it
