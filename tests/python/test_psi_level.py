@@ -45,7 +45,8 @@ def test_where_the_readings_cross_the_tracked_time_constants_stay_near_the_truth
     ratio 3.81, a 0.5 s sheath on the fast element). Where the two readings cross while the gas
     holds, psi is unobservable for a few seconds; with the level prior at sd 1 the MAP's psi
     went 17x above the truth and back there (the 3.3 s element read as 56 s, the per-row time
-    constants 74 % RMS off; the gas unaffected), written so into the ``--output`` CSV."""
+    constants 74 % RMS off; the gas unaffected), written so into the ``--output`` CSV; and
+    with the knot steps' Cauchy tail unbounded psi overshot at load steps (down to 0.04x)."""
     from scipy.ndimage import maximum_filter1d, minimum_filter1d
 
     from test_field_conditions import Case, _record
@@ -56,13 +57,15 @@ def test_where_the_readings_cross_the_tracked_time_constants_stay_near_the_truth
     assert model is not None and model.evidence.get("sheathed_path") == 1.0
     tau1, tau2 = result.time_constants_per_row()
     ratio = np.concatenate([tau1 / rec.tau1, tau2 / rec.tau2])
-    # measured 0.13 (sd 1: 0.74); the bound sits between, well under the old excursions
+    # measured 0.098 (level sd 1: 0.74; sd 0.5 with the knot steps' tail uncapped: 0.13)
     rms = float(np.sqrt(np.mean((ratio - 1.0) ** 2)))
     assert rms < 0.25, rms
-    # Rows whose true time constant holds within 10 % for 2 s either side (71 % of them):
-    # measured 0.41-2.01x the truth (sd 1: up to 16.8x). Within a load step the flow and
-    # the gas move at once and psi's timing is off by a few samples (down to 0.04x for
-    # under a second), which this does not bound.
+    # Every row: measured 0.47-2.02x the truth. With the tail uncapped (psi_map._STEP_CAP)
+    # psi overshot at load steps, down to 0.04x for under a second; with sd 1, 16.8x.
+    worst = float(np.exp(np.max(np.abs(np.log(ratio)))))
+    assert worst < 4.0, worst
+    # Rows whose true time constant holds within 10 % for 2 s either side (71 % of them),
+    # where the readings cross while the gas holds: measured 0.57-1.47x (sd 1: up to 16.8x).
     log_tau = np.log(rec.tau1)
     width = 2 * round(2.0 / rec.ts) + 1
     steady = maximum_filter1d(log_tau, width) - minimum_filter1d(log_tau, width) < np.log(1.1)

@@ -42,6 +42,16 @@ __all__ = ["PsiMap", "map_psi"]
 
 _EPS = 1e-4  # K: the dynamics rows' weight (exact sensors up to 0.1 mK)
 _DELTA = 1e-6  # log step of the central differences in log psi (error ~1e-12 relative)
+# The knot steps' heavy tail ends here (log psi per knot): a larger step is weighted as this
+# one, so beyond it the prior is Gaussian again (sd sqrt(step_std^2 + cap^2); step_std is
+# about 0.018 with knots every tf/8). Why: with the tail unbounded, psi overshot at load
+# steps, by up to 23x for under a second (pair 810 of field_sweep.py 7 12 noflow). Measured
+# on 36 sweep pairs (README): at 0.03 the geometric mean went 2.16x -> 2.09x the oracle and
+# 25 pairs were within 2.5x, not 24 (810 2.00x -> 1.68x, its worst row 23.5x -> 2.2x the
+# truth; 202 2.52x -> 1.44x; 802 3.57x -> 3.32x), the worst loss 5005 2.09x -> 2.17x. At 0.1
+# the gains were a third as large; no tail (Gaussian steps) lost one pair's sheathed path
+# (5307 1.98x -> 6.02x); 0.3 changed almost nothing.
+_STEP_CAP = 0.03
 
 
 @dataclass(frozen=True)
@@ -304,7 +314,8 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
 
     ``reweightings`` > 0 makes both priors heavy-tailed (Cauchy, by iteratively reweighted
     least squares from the last optimum): a gas increment ``dg`` over ``h`` is weighted
-    ``1 / sqrt(q h + dg^2)`` and a knot step ``dz`` of log psi ``1 / sqrt(step_std^2 + dz^2)``.
+    ``1 / sqrt(q h + dg^2)`` and a knot step ``dz`` of log psi ``1 / sqrt(step_std^2 + dz^2)``
+    up to ``|dz|`` = ``_STEP_CAP``, and as that one beyond it.
     Why: at load steps the gas moves by tens of kelvin and psi by a factor of 2 within a
     second, which Gaussian random walks make many-sigma events, so the MAP smeared psi there
     (README, "Heavy-tailed priors in the MAP").
@@ -334,7 +345,7 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     for _ in range(reweightings):
         gas = x.reshape(problem.n, problem.nx)[:, 0]
         problem.prior = 1.0 / np.sqrt(q * problem.h + np.diff(gas) ** 2)
-        problem.step = 1.0 / np.sqrt(step_std ** 2 + np.diff(z) ** 2)
+        problem.step = 1.0 / np.sqrt(step_std ** 2 + np.minimum(np.diff(z) ** 2, _STEP_CAP ** 2))
         problem.level, problem.centre_z = 1.0 / level_std, float(np.median(z))
         x, _ = problem.states_for(z, mapping, x)
         x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations)
