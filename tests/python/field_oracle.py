@@ -196,6 +196,12 @@ def oracle(
     return best
 
 
+def worst_factor(*ratios: np.ndarray) -> float:
+    """The largest factor by which any row of these estimate-over-truth ratios is off, either
+    way (2.0 for a row at twice or at half the truth)."""
+    return float(np.exp(max(np.max(np.abs(np.log(r))) for r in ratios)))
+
+
 def ratio_to_oracle(estimate: np.ndarray, rec: Any) -> float:
     """RMSE of a gas ``estimate`` against ``rec.gas`` over the oracle's, for an unsheathed
     record of tests/python/field_independent.py (its true per-row time constants ``tau1``,

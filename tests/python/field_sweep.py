@@ -26,7 +26,7 @@ import numpy as np
 from dualprobe import simulate as sim
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_oracle import oracle
+from field_oracle import oracle, worst_factor
 from test_field_conditions import DURATION, Case, _oracle_rmse, _record, _rmse
 
 
@@ -49,8 +49,7 @@ def _report(label: str, rec: sim.FieldRecording, target: np.ndarray, best: float
     tau1, tau2 = result.time_constants_per_row()
     errors = [float(np.sqrt(np.mean((est / truth - 1.0) ** 2)))
               for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2))]
-    worst = max(float(np.exp(np.max(np.abs(np.log(est / truth)))))
-                for est, truth in ((tau1, rec.tau1), (tau2, rec.tau2)))
+    worst = worst_factor(tau1 / rec.tau1, tau2 / rec.tau2)
     exponent = f" m {model.exponent:.3f}" if with_flow and model else ""
     orders = [len(taus) for taus in result.estimate.time_constants]
     print(verdict, label, model.kind if model else None, exponent,

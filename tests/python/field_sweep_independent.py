@@ -21,7 +21,7 @@ import numpy as np
 import field_independent as fi
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_oracle import oracle
+from field_oracle import oracle, worst_factor
 
 
 def sweep(seed: int, count: int) -> None:
@@ -65,7 +65,7 @@ def sweep(seed: int, count: int) -> None:
         per_row = result.time_constants_per_row()
         ratios = np.concatenate([per_row[0] / rec.tau1, per_row[1] / rec.tau2])
         tau_rms = float(np.sqrt(np.mean((ratios - 1.0) ** 2)))
-        worst = float(np.exp(np.max(np.abs(np.log(ratios)))))
+        worst = worst_factor(ratios)
         adequate = result.model_check.adequate
         flag = " DISHONEST" if ours > 2.5 * best and adequate else ""
         print(f"{verdict}{flag} {label}: {ours / best:.2f}x (oracle {best:.3f} K, raw / ours "

@@ -329,12 +329,12 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     rows that observe it. Not 1 (until 2026-12-02): where the two readings cross while the
     gas holds (y1 - y2 and both slopes near 0), psi is unobservable for a few seconds, and
     there it went 17x above the truth and back (a 3.3 s element read as 56 s, the per-row
-    time constants 74 % RMS off, the gas unaffected at 2.00x the oracle); at 0.5: 13 %, and
-    36 sweep pairs within 0.03x of before or better (README). The median, not 0 (the
-    stages' level), so that stages given at another level do not pull psi (on that record
-    both gave the same fit, 9.1 times the noise; the drifting psi's 1.2 was an artefact: its
-    1/psi up to 230 at the start filled the misfit's noise term, and without those 30 s it
-    misfit by 15.5)."""
+    time constants 74 % RMS off, the gas unaffected at 2.00x the oracle); at 0.5: 13 % (9.8 %
+    with _STEP_CAP), and 36 sweep pairs within 0.03x of before or better (README). The
+    median, not 0 (the stages' level), so that stages given at another level do not pull psi
+    (on that record both gave the same fit, 9.1 times the noise; the drifting psi's 1.2 was
+    an artefact: its 1/psi up to 230 at the start filled the misfit's noise term, and
+    without those 30 s it misfit by 15.5)."""
     problem = _Problem(np.asarray(t, float), (np.asarray(y1, float), np.asarray(y2, float)),
                        (np.asarray(stages1, float), np.asarray(stages2, float)), sigma, q,
                        spacing, step_std)
