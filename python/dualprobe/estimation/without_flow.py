@@ -212,12 +212,12 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
 
     def accepted(estimate: PairEstimate, stages: Sequence[tuple[float, ...]]
                  ) -> tuple[float, float] | None:
-        """The evidence and psi_noise of a schedule kept over the first-order tracking's, or
-        None: the same evidence the first-order tracking needs, significantly better than
-        what it had."""
+        """The evidence and psi_noise (NaN where the decision did not need it) of a schedule
+        kept over the first-order tracking's, or None: the same evidence the first-order
+        tracking needs, significantly better than what it had."""
         statistic = flow.evidence(fit_of(chosen[0]).misfit, fit_of(estimate).misfit, n_eff)
         if statistic > GAP_THRESHOLD:
-            return statistic, psi_noise(stages)
+            return statistic, math.nan
         # Or: both explain the data, but the first-order psi follows the noise (psi_noise over
         # the limit, so its misfit is fitted noise, no yardstick) and the MAP's does not. A
         # 20 Hz pair with sheaths 0.31 / 0.45 s: first order 0.85 times the noise with a psi
@@ -243,18 +243,18 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     # Only a kept schedule is profiled (4-7 more MAPs: a futile try at 50 Hz must not pay
     # them), and the profiled one is kept only with the same evidence.
     profiled = _profile_sheaths(stages, lambda st: solve(st, slice(None)))
-    if profiled != stages:
-        nxt = schedule(profiled)
-        candidate = run(nxt) if nxt is not None else None
-        if nxt is not None and candidate is not None and candidate.status == "ok":
-            again = accepted(candidate, profiled)
-            if again is not None:
-                psi, estimate, stages, evidence = nxt, candidate, profiled, again
-                lo, hi = np.quantile(psi, [0.05, 0.95])
+    nxt = schedule(profiled) if profiled != stages else None
+    candidate = run(nxt) if nxt is not None else None
+    again = (accepted(candidate, profiled)
+             if candidate is not None and candidate.status == "ok" else None)
+    if nxt is not None and candidate is not None and again is not None:
+        psi, estimate, stages, evidence = nxt, candidate, profiled, again
+        lo, hi = np.quantile(psi, [0.05, 0.95])
     statistic, noise = evidence
     stats = {**stats, "misfit_tracked": fit_of(estimate).misfit, "tracking_statistic": statistic,
              "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(spacing),
-             "sheathed_path": 1.0, "sheathed_block_rows": float(size), "psi_noise": noise}
+             "sheathed_path": 1.0, "sheathed_block_rows": float(size),
+             "psi_noise": noise if math.isfinite(noise) else psi_noise(stages)}
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 
@@ -278,14 +278,13 @@ def _profile_sheaths(stages: list[tuple[float, ...]],
         if len(pair) != 2 or not math.isfinite(cost):
             continue
         d = _PROFILE_STEP
-        start = best
-        seen = [(cost, start)] + [_scaled(solve, start, sensor, c) for c in (-d, d)]
+        seen = [(cost, best)] + [_scaled(solve, best, sensor, c) for c in (-d, d)]
         down, up = seen[1][0], seen[2][0]
         curvature = up + down - 2.0 * cost
         if math.isfinite(curvature) and curvature > 0.0:
             vertex = float(np.clip(0.5 * d * (down - up) / curvature, -2.0 * d, 2.0 * d))
             if abs(vertex) > 0.1 * d:
-                seen.append(_scaled(solve, start, sensor, vertex))
+                seen.append(_scaled(solve, best, sensor, vertex))
         cost, best = min(seen, key=lambda item: item[0])
     return best
 
