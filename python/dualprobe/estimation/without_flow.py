@@ -249,10 +249,10 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         profiled = _profile_sheaths(stages, lambda st: solve(st, slice(None)))
         nxt = schedule(profiled) if profiled != stages else None
         candidate = run(nxt) if nxt is not None else None
-        again = (accepted(candidate, profiled)
-                 if candidate is not None and candidate.status == "ok" else None)
-        if nxt is not None and candidate is not None and again is not None:
-            psi, estimate, stages, evidence = nxt, candidate, profiled, again
+        if nxt is not None and candidate is not None and candidate.status == "ok":
+            again = accepted(candidate, profiled)
+            if again is not None:
+                return nxt, candidate, profiled, again
         return psi, estimate, stages, evidence
 
     start = [tuple(s for s in pair[::-1] if s > _SHEATH_FLOOR * pair[0])
