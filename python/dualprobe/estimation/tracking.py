@@ -77,7 +77,13 @@ def solve_penalised(system: KnotSystem, penalty: float,
     """Smallest generalised eigenpair of ``(S + penalty R) v = mu C v`` (diagonally scaled;
     ``penalty`` relative to the scaled data term)."""
     s, c, r = matrices if matrices is not None else sparse_system(system)
-    scale = 1.0 / np.sqrt(np.maximum(s.diagonal(), np.finfo(float).tiny))
+    # A knot column can be exactly zero: knots at every row (a rate near 1 / tf) on a logger's
+    # quantised readings, where both sensors read the same step (T2 - T1 = 0). Its scale is
+    # floored (its value then rests on the penalty's neighbours) instead of made infinite,
+    # which failed every such track (a 2 Hz record's even/odd halves: psi_noise unknown).
+    diagonal = s.diagonal()
+    floor = max(1e-12 * float(np.mean(diagonal)), np.finfo(float).tiny)
+    scale = 1.0 / np.sqrt(np.maximum(diagonal, floor))
     dm = sp.diags(scale)
     a = (dm @ (s + penalty * r) @ dm).tocsc()
     m = (dm @ c @ dm).tocsc()
