@@ -37,3 +37,27 @@ def test_a_first_order_psi_that_follows_the_noise_gives_way_to_found_sheaths() -
     assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * best  # the issue's bound without flow
     check = result.model_check
     assert check is not None and not check.adequate  # the sheathed path's schedule: warned
+
+
+def test_an_oscillating_fit_that_misfits_by_its_own_rows_does_not_replace_first_order() -> None:
+    """An unsheathed 5 Hz pair, m = 0.7 (elements 4 / 10 s, 20 min): first-order tracking
+    explains the data (1.08 times the noise) with a psi 16 % of noise, so the sheathed path is
+    tried; its schedule's fit (1.29 times the noise, a complex pole pair on the slow sensor) was
+    taken as explaining the data by the constant fit's effective rows (1291: 7.4 deviations)
+    where its own (3672) make it 13, and the characterisation was refused (exit 3: the fit
+    oscillates; its gas 46 K off). Kept first order instead: 1.46x the oracle measured, warned
+    because its psi follows the noise."""
+    rec = independent_record(9012, rate=5.0, tau=4.0, ratio=2.5, m=0.7)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "tracked"
+    assert model.evidence.get("sheathed_path", 0.0) == 0.0
+    assert result.gas_estimate is not None and result.model_check is not None
+    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
+                  gases=("rw",)).rmse
+    assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * best  # the issue's bound without flow
+    # the honesty property: its per-row time constants are 33 % RMS off (measured), beyond the
+    # 15 % (three times the issue's 5 %) that may stand beside "adequate"
+    tau1, tau2 = result.time_constants_per_row()
+    ratios = np.concatenate([tau1 / rec.tau1, tau2 / rec.tau2])
+    assert float(np.sqrt(np.mean((ratios - 1.0) ** 2))) <= 0.15 or not result.model_check.adequate
