@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from dualprobe import simulate as sim
-from dualprobe.estimation import without_flow
+from dualprobe.estimation import map_schedule, without_flow
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.psi_map import map_psi
 from dualprobe.io import EstimationError
@@ -128,7 +128,7 @@ def test_a_record_over_the_row_limit_takes_the_sheathed_path_on_block_means(
     Measured: 1.35x the oracle (1.51x on all the rows; skipped, the pair was refused: "the
     fitted dynamics oscillate"); at full scale (25 min at 50 Hz, blocks of 2) three pairs went
     from refused, 14.4x and 12.6x to 1.87x, 5.27x and 5.87x."""
-    monkeypatch.setattr(without_flow, "_SHEATHED_MAX_ROWS", 6000)
+    monkeypatch.setattr(map_schedule, "SHEATHED_MAX_ROWS", 6000)
     calls = _spy_on_the_cross_relation(monkeypatch)
     rec = _sheathed_record(20.0, 600.0)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
@@ -150,7 +150,7 @@ def test_block_means_slower_than_10_hz_are_not_used(monkeypatch: pytest.MonkeyPa
     """Blocks of 2 rows of a 10 Hz record would be 5 Hz, too slow for sheaths of 0.1-0.8 s:
     such a record over the limit keeps what the first-order tracking gave, as before (this
     pair is then refused: its first-order fit oscillates; within the limit it is tracked)."""
-    monkeypatch.setattr(without_flow, "_SHEATHED_MAX_ROWS", 5000)
+    monkeypatch.setattr(map_schedule, "SHEATHED_MAX_ROWS", 5000)
     calls = _spy_on_the_cross_relation(monkeypatch)
     rec = _sheathed_record(10.0, 600.0)
     assert rec.t.size > 5000
@@ -161,12 +161,12 @@ def test_block_means_slower_than_10_hz_are_not_used(monkeypatch: pytest.MonkeyPa
 
 def test_block_means_are_the_fewest_blocks_within_the_limit() -> None:
     t1 = np.arange(13.0)
-    a, b, size = without_flow._block_means(t1, -t1, 0.01)
+    a, b, size = map_schedule.block_means(t1, -t1, 0.01)
     assert (a.size, size) == (13, 1) and a is t1
-    limit = without_flow._SHEATHED_MAX_ROWS
+    limit = map_schedule.SHEATHED_MAX_ROWS
     rows = 2 * limit + 3  # needs blocks of 3; the last 2 rows fall off
     t1 = np.arange(float(rows))
-    a, b, size = without_flow._block_means(t1, 2.0 * t1, 0.01)
+    a, b, size = map_schedule.block_means(t1, 2.0 * t1, 0.01)
     assert size == 3 and a.size == rows // 3 <= limit
     assert a[0] == 1.0 and a[-1] == float(3 * (rows // 3) - 2)
     np.testing.assert_array_equal(b, 2.0 * a)

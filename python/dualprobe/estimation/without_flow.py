@@ -17,9 +17,10 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from dualprobe.estimation import crossfit, flow, level, psi_map, tracking
+from dualprobe.estimation import crossfit, flow, psi_map, tracking
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.field import FlowModel, RunSvf, effective_rows, fit_of, window_fits
+from dualprobe.estimation.map_schedule import MapSchedule
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD, PSI_NOISE_LIMIT
@@ -120,69 +121,27 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
               ) -> tuple[PairEstimate, FlowModel]:
     """Second-order pairs (sheaths) that the first-order tracking leaves misfitting: psi from
     the joint cross-relation fit (:mod:`dualprobe.estimation.crossfit`) refined by the joint
-    MAP (:mod:`dualprobe.estimation.psi_map`), both on block means (:func:`_block_means`) where
-    the record is over ``_SHEATHED_MAX_ROWS``, alternated with the engine's order-2 stages and
-    each sheath then profiled by the MAP's cost (:func:`_profile_sheaths`), then the engine's
-    fit on that schedule at every row; kept only when it fits better than what the first-order
-    tracking gave. Where the cross-relation found no sheath on a sensor, the same from a seeded
-    sheath (``_SHEATH_SEED``) too, kept when it fits significantly better."""
+    MAP (:mod:`dualprobe.estimation.psi_map`), both on block means where the record is long
+    (:class:`~dualprobe.estimation.map_schedule.MapSchedule`), alternated with the engine's
+    order-2 stages and each sheath then profiled by the MAP's cost (:func:`_profile_sheaths`),
+    then the engine's fit on that schedule at every row; kept only when it fits better than
+    what the first-order tracking gave. Where the cross-relation found no sheath on a sensor,
+    the same from a seeded sheath (``_SHEATH_SEED``) too, kept when it fits significantly
+    better."""
     fit = fit_of(base)
-    a, b, size = _block_means(t1, t2, fit.ts)
-    ts = fit.ts * size
-    if size > 1 and ts > (1.0 + 1e-6) / _SHEATHED_RATE:  # (a resampled interval's rounding)
+    maps = MapSchedule(t1, t2, fit)
+    if not maps.usable:
         return chosen
     taus = base.time_constants
     static = (fit.gain_ratio, fit.offset) if fit.static == "affine" else (1.0, 0.0)
-    # a mean of `size` rows of white noise has 1/sqrt(size) of its standard deviation
-    sigma = (fit.sigma[0] / math.sqrt(size), fit.sigma[1] / math.sqrt(size))
-    # knots every tf / _KNOTS_PER_TF (map_log scales the prior step to keep its variance per second)
-    spacing = max(1, round(fit.tf / ts / _KNOTS_PER_TF))
-    centres = (np.arange(a.size) * size + 0.5 * (size - 1)) * fit.ts
     try:
-        cross = crossfit.fit_cross_relation(a, b, ts, fit.tf, (taus[0][0], taus[1][0]), static)
-        gain, offset = cross.static
-        q = _gas_intensity(a, ts, fit.tf, taus[0][0])
+        cross = crossfit.fit_cross_relation(maps.a, maps.b, maps.ts, fit.tf,
+                                            (taus[0][0], taus[1][0]), static)
+        maps.set_model(cross.static, taus[0][0])
     except (ValueError, np.linalg.LinAlgError, RuntimeError):
         return chosen
-
-    def solve(stages: Sequence[tuple[float, ...]], rows: slice) -> psi_map.PsiMap | None:
-        """The MAP of these block rows, knots every ``spacing`` blocks' time."""
-        step = rows.step or 1
-        knots = max(1, round(spacing / step))
-        y1, y2 = a[rows], b[rows]
-        try:
-            return psi_map.map_psi(np.arange(y1.size) * ts * step, y1, y2, stages[0], stages[1],
-                                   (1.0 / gain, -offset / gain), sigma, q, knots,
-                                   _PSI_STEP * math.sqrt(knots * step * ts / fit.tf),
-                                   reweightings=_REWEIGHTINGS)
-        except (ValueError, np.linalg.LinAlgError, RuntimeError):
-            return None
-
-    def map_log(stages: Sequence[tuple[float, ...]], rows: slice) -> np.ndarray | None:
-        """The MAP log psi of these block rows (mean 0)."""
-        found = solve(stages, rows)
-        if found is None:
-            return None
-        log_psi = np.log(found.psi)
-        return log_psi - float(np.mean(log_psi)) if np.all(np.isfinite(log_psi)) else None
-
-    def schedule(stages: Sequence[tuple[float, ...]]) -> np.ndarray | None:
-        """The MAP psi at every row (each block's at its centre, linear between), mean log 0."""
-        log_psi = map_log(stages, slice(None))
-        if log_psi is None:
-            return None
-        out = np.interp(np.arange(t1.size) * fit.ts, centres, log_psi)
-        return np.exp(out - float(np.mean(out)))
-
+    schedule, psi_noise = maps.schedule, maps.psi_noise
     n_eff = effective_rows(base)
-
-    def psi_noise(stages: Sequence[tuple[float, ...]]) -> float:
-        """How much of the MAP psi follows the noise, as tracking.split_noise measures the
-        first-order one: the even and the odd blocks apart (the same gas and flow, independent
-        noise), half the RMS difference of their log psi; NaN when a half fails."""
-        halves = [map_log(stages, slice(k, None, 2)) for k in (0, 1)]
-        return (tracking.half_difference(halves[0], halves[1])
-                if halves[0] is not None and halves[1] is not None else math.nan)
 
     def accepted(estimate: PairEstimate, stages: Sequence[tuple[float, ...]]
                  ) -> tuple[float, float] | None:
@@ -255,7 +214,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
             return None
         # Only a kept schedule is profiled (4-7 more MAPs: a futile try at 50 Hz must not
         # pay them), and the profiled one is kept only with the same evidence.
-        profiled = _profile_sheaths(stages, lambda st: solve(st, slice(None)))
+        profiled = _profile_sheaths(stages, maps.solve)
         nxt = schedule(profiled) if profiled != stages else None
         candidate = run(nxt) if nxt is not None else None
         if nxt is not None and candidate is not None and candidate.status == "ok":
@@ -287,8 +246,8 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     lo, hi = np.quantile(psi, [0.05, 0.95])
     statistic, noise = evidence
     stats = {**stats, "misfit_tracked": fit_of(estimate).misfit, "tracking_statistic": statistic,
-             "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(spacing),
-             "sheathed_path": 1.0, "sheathed_block_rows": float(size),
+             "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(maps.spacing),
+             "sheathed_path": 1.0, "sheathed_block_rows": float(maps.size),
              "psi_noise": noise if math.isfinite(noise) else psi_noise(stages)}
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
@@ -343,32 +302,6 @@ def _cost(found: psi_map.PsiMap | None) -> float:
     return found.cost if found is not None and np.all(np.isfinite(found.psi)) else math.inf
 
 
-def _block_means(t1: np.ndarray, t2: np.ndarray, ts: float
-                 ) -> tuple[np.ndarray, np.ndarray, int]:
-    """Both sensors as means of blocks of ``size`` rows: the fewest that bring a record over
-    ``_SHEATHED_MAX_ROWS`` within it (``size`` 1: the rows themselves, the usual case). A mean
-    over a block is a filter common to both sensors, so it cancels from the cross-relation and
-    the MAP takes it for part of the gas; the rows left over at the end are dropped."""
-    size = max(1, math.ceil(t1.size / _SHEATHED_MAX_ROWS))
-    if size == 1:
-        return t1, t2, 1
-    rows = (t1.size // size) * size
-    return (t1[:rows].reshape(-1, size).mean(axis=1), t2[:rows].reshape(-1, size).mean(axis=1),
-            size)
-
-
-def _gas_intensity(t1: np.ndarray, ts: float, tf: float, tau: float) -> float:
-    """The gas random walk's intensity (K^2/s) for :func:`psi_map.map_psi`: ``_GAS_SAFETY``
-    times the increments of sensor 1's first-order inverse (:func:`level.gas_level` at the
-    constant fit's time constant; about 0.7 of the oracle's q on drive cycles). Given the TRUE
-    stages a weaker prior is better (1.23x, 3.01x, 1.59x the oracle with the oracle's q; 1.11x,
-    2.27x, 1.33x with 100 times it), but with the estimated stages psi then absorbs their
-    errors (a drive cycle at 2.30x went to 3.32x with 100 times), so the factor stays at 4 (the
-    sweeps in the README); a tenth of the oracle's q was worse in both (1.25x -> 1.43x)."""
-    gas = level.gas_level(t1, np.full(t1.size, tau), ts, tf)
-    return max(_GAS_SAFETY * float(np.mean(np.diff(gas) ** 2)) / ts, 1e-6)
-
-
 # A constant model that misfits by less than this (its residual within twice the noise) is a
 # noise model that is off (quantisation, coloured noise), not time constants that vary: on
 # quantised laboratory records (0.1 K steps, 0.02 K noise, constant time constants) the misfit is
@@ -376,19 +309,7 @@ def _gas_intensity(t1: np.ndarray, ts: float, tf: float, tau: float) -> float:
 # standard deviations off); time constants that follow the flow misfit by 30-15 000.
 _TRACKING_MISFIT = 4.0
 
-# The sheathed path (_sheathed): its joint MAP solves a banded system of up to 5 states per row
-# (a 30 min, 10 Hz record: 18 000 rows, 3-6 s with SuperLU; by banded Cholesky, estimation/
-# banded.py, a 20 min record's MAP took 15 s of CPU where SuperLU took 23; the whole
-# characterisation 15-28 s and 281 MB
-# peak); it grows about linearly, so longer records run it on block means (_block_means; on
-# 20 min at 50 Hz, blocks to 10 Hz were 1.6-2x faster but up to 1.2x further from the oracle
-# than all rows, so records within the limit use every row).
-_SHEATHED_MAX_ROWS = 60_000
-_SHEATHED_RATE = 10.0  # Hz: block means slower than this would blur the sheaths (0.1-0.8 s)
 _SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
-_PSI_STEP = 0.05  # prior sd of log psi over tf (from knot to knot with one knot per tf)
-_KNOTS_PER_TF = 8  # psi's knots: load steps move it by 2x within a second
-_REWEIGHTINGS = 2  # heavy-tailed priors in the MAP (psi_map.map_psi)
 _ALTERNATIONS = 3  # MAP psi <-> the engine's order-2 stages
 _PROFILE_STEP = math.log(1.15)  # the sheath profile's first steps (_profile_sheaths)
 _SHEATH_SEED = 0.05  # of the fast element: a sheath tried where the cross-relation found none
@@ -407,7 +328,6 @@ _SHEATH_SEED = 0.05  # of the fast element: a sheath tried where the cross-relat
 # identical. A futile try costs 3-8 times the CPU time (2-3 s -> 8-16 s at 10-20 Hz, 15 s ->
 # 118 s for 20 min at 50 Hz: the cross-relation fit and two MAPs), paid only without a flow.
 _SHEATH_SUSPECT = PSI_NOISE_LIMIT
-_GAS_SAFETY = 4.0  # see _gas_intensity
 
 _STATIC_WINDOW = 240.0  # s: constant fits of half-overlapping windows for the static map's start
 
