@@ -100,9 +100,17 @@ def _sensor(gas: np.ndarray, psi: np.ndarray, tau: float, sheath: float,
 def record(seed: int, *, duration: float = 1200.0, rate: float = 10.0, tau: float = 4.0,
            ratio: float = 3.0, m: float = 0.5, sheaths: tuple[float, float] = (0.0, 0.0),
            gains: tuple[float, float] = (1.0, 1.0), noise: float = 0.05, adc: float = 0.02,
-           jitter: float = 0.0, hold: int = 1) -> Recording:
+           jitter: float = 0.0, hold: int = 1, common: float = 0.0) -> Recording:
     """A pair on a drive cycle (module docstring); ``jitter`` the sampling instants' standard
-    deviation (s; the logged time stays nominal), ``hold`` rows per refresh of sensor 2."""
+    deviation (s; the logged time stays nominal), ``hold`` rows per refresh of sensor 2.
+
+    ``common`` (s at v_ref, at most the smaller sheath) moves that much of both sheaths into
+    the gas: the gas is taken as seen through a stage of ``common / psi`` and each sheath
+    shortens by it. The drive cycle, noise and everything else stay the same draws, so this
+    is the same pair in another world whose readings differ only by the stage ordering of the
+    shortened sheath (nothing when the sheaths were equal): a lag common to both sensors."""
+    if not 0.0 <= common <= min(sheaths):
+        raise ValueError("common must lie between 0 and the smaller sheath")
     rng = np.random.default_rng(seed)
     n = int(duration / DT)
     v = _speed(n, rng)
@@ -115,6 +123,9 @@ def record(seed: int, *, duration: float = 1200.0, rate: float = 10.0, tau: floa
     mass_flow = 0.012 + 0.09 * _lowpass(load, 0.2) ** 1.1
     velocity = mass_flow * gas  # ideal gas at constant pressure: v ~ mdot T
     psi = (velocity / math.exp(float(np.mean(np.log(velocity))))) ** m
+    if common > 0.0:  # the gas as the common stage passes it; the sheaths keep the rest
+        gas = _sensor(gas, psi, common, 0.0)[0]
+        sheaths = (sheaths[0] - common, sheaths[1] - common)
     y1, te1, ts1 = _sensor(gas, psi, tau, sheaths[0])
     y2, te2, ts2 = _sensor(gas, psi, tau * ratio, sheaths[1])
     idx = np.arange(0, n, round(1.0 / (rate * DT)))
