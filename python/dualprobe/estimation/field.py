@@ -46,7 +46,7 @@ class FlowModel:
     average when tracked); ``exponent`` m of the power law (its estimate also for kind curve; 0
     for constant); ``curve`` for kind curve; ``evidence`` the statistics behind the choice;
     ``level_sensitivity`` b and ``level_curvature`` c when the power law carries a gas-level
-    term (see ``_level``)."""
+    term (see ``_level``); ``rival`` see :mod:`dualprobe.estimation.rival`."""
 
     kind: str
     psi: np.ndarray
@@ -64,6 +64,9 @@ class FlowModel:
     level_curvature: float = 0.0  # c, per unit of T squared
     level_parameters: tuple[float, float] = (0.0, 0.0)  # b and c x the level's 5-95 % span^1,2
     delay: float = 0.0  # s: psi follows the flow column this much later (flow_timing)
+    # a tracked schedule's rival: another schedule that explains the data as well (the
+    # engine's fit on it), whose gas the reconstruction's uncertainty must cover (rival.py)
+    rival: PairEstimate | None = None
 
     @property
     def scheduled(self) -> bool:

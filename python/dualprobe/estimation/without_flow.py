@@ -23,6 +23,7 @@ from dualprobe.estimation.field import FlowModel, RunSvf, effective_rows, fit_of
 from dualprobe.estimation.map_schedule import MapSchedule
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.result import PairEstimate
+from dualprobe.estimation.rival import rival_schedule
 from dualprobe.estimation.settings import GAP_THRESHOLD, PSI_NOISE_LIMIT
 
 __all__ = ["track_without_flow"]
@@ -113,7 +114,8 @@ def track_without_flow(
     # the sheathed path, kept only when it fits better (tried once: it is deterministic)
     if suspect or fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
         chosen = _sheathed(t1, t2, base, chosen, run, stats)
-    return chosen
+    # does the tracked schedule have a rival that explains the data as well? (rival.py)
+    return chosen[0], rival_schedule(t1, t2, chosen[0], chosen[1], run)
 
 
 def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,

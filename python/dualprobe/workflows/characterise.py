@@ -18,8 +18,10 @@ from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import (
+    MISFIT_LIMIT,
     check_model,
     describe_stages,
+    refuse_departing_gas,
     refuse_implausible,
     refuse_opposed,
     refuse_undetermined,
@@ -29,6 +31,7 @@ from dualprobe.workflows.checks import (
     unsettled_stages,
 )
 from dualprobe.workflows.readings import prepare_readings
+from dualprobe.workflows.undetermined import Undetermined, undetermined
 
 __all__ = [
     "METHODS",
@@ -255,12 +258,16 @@ def characterise_arrays(
     refuse_opposed(static, columns)
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
+    doubt: Undetermined | None = None
     resolved: Bandwidth | None = None
     rmse: float | None = None
     residuals = None
     if reconstruction is not None:
         result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
         gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
+        doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, gas, gas_std)
+        if doubt is not None and gas_std is not None:
+            gas_std = np.hypot(gas_std, doubt.spread)
         residuals = _residuals(result, t1, t2, static)
         if reference is not None:
             valid = np.isfinite(gas)
@@ -275,7 +282,7 @@ def characterise_arrays(
     if static is not None:
         levels = (levels[0], abs(static[0]) * levels[1])
     # the paper's method has no misfit statistic of its own: its residuals are checked
-    check = (check_model(estimate, residuals, levels, (t1, t2), columns)
+    check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt)
              if svf or residuals is not None else None)
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts
@@ -297,6 +304,39 @@ def characterise_arrays(
         notes=held,
         reference=reference,
     )
+
+
+def _rival_doubt(
+    t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate, mode: str,
+    gas: np.ndarray, gas_std: np.ndarray | None,
+) -> Undetermined | None:
+    """The spread between this gas and the rival schedule's (estimation/rival.py), where the
+    tracked schedule has one; None where not, or where the rival's result would itself be
+    refused or misfit (then it is no rival: a 2 Hz pair's MAP schedule explained the
+    cross-relation, 0.57 times the noise, and put the gas 3,180 K RMS off)."""
+    model = estimate.flow_model
+    rival = model.rival if model is not None else None
+    if rival is None or gas_std is None:
+        return None
+    static = _relative_static(rival)
+    try:
+        other = _reconstruct(t1, t2, ts, rival, mode, False, static)
+        residuals = _residuals(other, t1, t2, static)
+        refuse_implausible(rival, (t1.size - 1) * ts, ("sensor 1", "sensor 2"), residuals,
+                           (t1, t2), other.gas, static)
+        # (applied to the product's own gas only while it misfits; a rival must pass it)
+        refuse_departing_gas(rival, other.gas, (t1, t2), static,
+                             float(rival.details.get("residual_to_noise", math.nan)))  # type: ignore[arg-type]
+    except EstimationError:
+        return None
+    used = rival.details.get("noise_std_used", rival.noise_std)
+    sigma = (float(used[0]),  # type: ignore[index]
+             float(used[1]) * (abs(static[0]) if static is not None else 1.0))  # type: ignore[index]
+    if residuals is not None and any(
+            float(np.sqrt(np.nanmean(r * r))) > MISFIT_LIMIT * max(s, 1e-300)
+            for r, s in zip(residuals, sigma, strict=True)):
+        return None
+    return undetermined(gas, other.gas, gas_std, ts)
 
 
 def _reconstruct(

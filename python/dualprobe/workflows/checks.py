@@ -51,10 +51,11 @@ from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import PSI_NOISE_LIMIT, RECORD_FRACTION, SHARED_FACTOR
 from dualprobe.io import EstimationError
 from dualprobe.models.held import HELD_SHARE, held_share
+from dualprobe.workflows.undetermined import Undetermined
 
 __all__ = ["MISFIT_LIMIT", "PSI_NOISE_LIMIT", "ModelCheck", "check_model",
            "describe_stages",
-           "refuse_implausible", "refuse_opposed", "refuse_undetermined",
+           "refuse_departing_gas", "refuse_implausible", "refuse_opposed", "refuse_undetermined",
            "spurious_shared_stage",
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
@@ -130,10 +131,12 @@ def _misfit(estimate: PairEstimate) -> tuple[float, float]:
 def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,
                 sigma: tuple[float, float] | None,
                 readings: tuple[np.ndarray, np.ndarray] | None = None,
-                columns: tuple[str, str] = ("sensor 1", "sensor 2")) -> ModelCheck:
+                columns: tuple[str, str] = ("sensor 1", "sensor 2"),
+                rival: Undetermined | None = None) -> ModelCheck:
     """The model check (module docstring). ``residuals``: each sensor's reading minus what
     the reconstruction predicts for it (None without a reconstruction); ``sigma``: the noise
-    levels they are compared with; ``readings``: checked for held readings."""
+    levels they are compared with; ``readings``: checked for held readings; ``rival``: how
+    far a tracked schedule's rival puts the gas (:mod:`dualprobe.workflows.undetermined`)."""
     mu, statistic = _misfit(estimate)
     reasons = []
     for column, x in zip(columns, readings or (), strict=False):
@@ -177,6 +180,8 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             "the tracked time constants could not be checked against the noise: tracked from "
             "the even and from the odd rows apart, a half could not be tracked, so how far "
             f"noise alone moves them is unknown; {_TRACKED_DOUBT}")
+    elif rival is not None and rival.doubtful:
+        reasons.append(rival.reason())
     ratios = None
     if residuals is not None and sigma is not None:
         ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
@@ -437,7 +442,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 f"so the data do not determine it; {_advice(estimate)}, or try --order 1 or "
                 "dualprobe diagnose")
         if gas is not None:
-            _refuse_departing_gas(estimate, gas, readings, static, mu)
+            refuse_departing_gas(estimate, gas, readings, static, mu)
     if residuals is None:
         return
     spread = float(np.sqrt(np.mean((readings[0] - readings[1]) ** 2)))
@@ -451,7 +456,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 "try --order 1 or --flow")
 
 
-def _refuse_departing_gas(estimate: PairEstimate, gas: np.ndarray,
+def refuse_departing_gas(estimate: PairEstimate, gas: np.ndarray,
                           readings: tuple[np.ndarray, np.ndarray],
                           static: tuple[float, float] | None, mu: float) -> None:
     """Refuse (the model misfits) a gas that departs from both sensors by more than
