@@ -24,7 +24,8 @@ from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 
-__all__ = ["REFINE_GRID", "FlowModel", "RunSvf", "effective_rows", "fit_of", "flow_law",
+__all__ = ["REFINE_GRID", "FlowModel", "RunSvf", "effective_rows", "explains_data", "fit_of",
+           "flow_law",
            "scheduled_misfit", "window_fits", "windowed_time_constants"]
 
 # run the SVF characterisation (orders, static model, identifiability) with a schedule psi
@@ -94,6 +95,12 @@ def fit_of(estimate: PairEstimate) -> Fit:
 def effective_rows(estimate: PairEstimate) -> float:
     value = estimate.details.get("effective_samples")
     return float(value) if isinstance(value, (int, float)) else float(fit_of(estimate).rows)
+
+
+def explains_data(estimate: PairEstimate) -> bool:
+    """The fit's misfit within ``GAP_THRESHOLD`` noise standard deviations of the noise, by
+    its own effective rows (as the model check judges it)."""
+    return flow.evidence(fit_of(estimate).misfit, 1.0, effective_rows(estimate)) <= GAP_THRESHOLD
 
 
 def exponent_misfit(t1: np.ndarray, t2: np.ndarray, like: Fit, signal: flow.FlowSignal,

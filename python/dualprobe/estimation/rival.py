@@ -5,15 +5,16 @@ first order ``psi = (tau1 y1' - tau2 y2') / (y2 - y1)``). Where the readings coi
 gas and the flow move together, as an exhaust's load moves both, a change of psi and a change of
 the gas explain the readings alike, and the tracked psi there is what its regularisation made
 it. The even/odd split (``psi_noise``) cannot see this: both halves share the gap. Measured on
-the separate generator (tests/python/field_independent.py, a pair of 6.5 / 14.1 s elements, m
-0.62, 10 Hz, no sheath): where a cruise's 0.2 Hz speed wobble moved the gas by +-25 K and psi by
-+-30 % while the readings coincided, the tracked time constants were 25 % RMS off and the gas
-5.3x the oracle's error, reported as explaining the data.
+the separate generator (tests/python/field_independent.py, a nearly unsheathed pair of 6.5 /
+14.1 s elements, m 0.62, 10 Hz): where a cruise's 0.2 Hz speed wobble moved the gas by +-25 K
+and psi by +-30 % while the readings coincided, the tracked time constants were 25 % RMS off
+and the gas 5.3x the oracle's error, reported as explaining the data.
 
 So a rival schedule is made by another estimator with other priors: the joint MAP of the gas,
 the states and psi (:class:`~dualprobe.estimation.map_schedule.MapSchedule`) given the tracked
-stages and static map, fitted by the same engine. Where the rival explains the data as well (the
-tracked schedule not better by ``GAP_THRESHOLD``), the data cannot choose between the two, and
+stages and static map, fitted by the same engine at the tracked order; the farthest schedule
+from the tracked one towards it that explains the data (as the model check judges it) is the
+rival. Where there is one, the data cannot choose between the two schedules, and
 any estimate of the gas lies at least half their gases' distance from one of them: the
 reconstruction's uncertainty covers that half-difference, and the model check doubts a record
 where it exceeds the uncertainty stated without it (:mod:`dualprobe.workflows.characterise`).
@@ -25,11 +26,9 @@ import dataclasses
 
 import numpy as np
 
-from dualprobe.estimation import flow
-from dualprobe.estimation.field import FlowModel, RunSvf, effective_rows, fit_of
+from dualprobe.estimation.field import FlowModel, RunSvf, explains_data, fit_of
 from dualprobe.estimation.map_schedule import MapSchedule
 from dualprobe.estimation.result import PairEstimate
-from dualprobe.estimation.settings import GAP_THRESHOLD
 
 __all__ = ["rival_schedule"]
 
@@ -69,9 +68,8 @@ def rival_schedule(t1: np.ndarray, t2: np.ndarray, chosen: PairEstimate, model: 
         estimate = run(psi, order)
         if estimate.status != "ok":
             continue
-        misfit = fit_of(estimate).misfit
-        if flow.evidence(misfit, 1.0, effective_rows(estimate)) <= GAP_THRESHOLD:
-            evidence.update(misfit_rival=misfit, rival_share=share)
+        if explains_data(estimate):
+            evidence.update(misfit_rival=fit_of(estimate).misfit, rival_share=share)
             rival = dataclasses.replace(estimate, flow_model=FlowModel("tracked", psi))
             return dataclasses.replace(model, evidence=evidence, rival=rival)
     return model

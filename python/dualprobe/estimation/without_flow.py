@@ -19,7 +19,14 @@ import numpy as np
 
 from dualprobe.estimation import crossfit, flow, psi_map, tracking
 from dualprobe.estimation.engine import Fit
-from dualprobe.estimation.field import FlowModel, RunSvf, effective_rows, fit_of, window_fits
+from dualprobe.estimation.field import (
+    FlowModel,
+    RunSvf,
+    effective_rows,
+    explains_data,
+    fit_of,
+    window_fits,
+)
 from dualprobe.estimation.map_schedule import MapSchedule
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.result import PairEstimate
@@ -142,7 +149,6 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         maps.set_model(cross.static, taus[0][0])
     except (ValueError, np.linalg.LinAlgError, RuntimeError):
         return chosen
-    schedule, psi_noise = maps.schedule, maps.psi_noise
     n_eff = effective_rows(base)
 
     def accepted(estimate: PairEstimate, stages: Sequence[tuple[float, ...]]
@@ -174,10 +180,9 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
                 and any(len(taus) > 1 and taus[1] > _SHEATH_FLOOR * taus[0]
                         for taus in estimate.time_constants)
                 and not _oscillates(estimate)
-                and flow.evidence(fit_of(estimate).misfit, 1.0,
-                                  effective_rows(estimate)) <= GAP_THRESHOLD):
+                and explains_data(estimate)):
             return None
-        noise = psi_noise(stages)
+        noise = maps.psi_noise(stages)
         return (statistic, noise) if noise <= PSI_NOISE_LIMIT else None
 
     def descend(stages: list[tuple[float, ...]]
@@ -185,7 +190,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
                            tuple[float, float]] | None:
         """From these stages: psi, the engine's fit, the stages and the evidence after the
         alternations and the profile; None when the schedule is not kept."""
-        psi = schedule(stages)
+        psi = maps.schedule(stages)
         if psi is None:
             return None
         lo, hi = np.quantile(psi, [0.05, 0.95])
@@ -203,7 +208,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
             if refit.status != "ok" or any(len(pair) != 2 for pair in refit.time_constants):
                 break
             refined = [tuple(sorted(pair)) for pair in refit.time_constants]
-            nxt = schedule(refined)
+            nxt = maps.schedule(refined)
             if nxt is None:
                 break
             candidate = run(nxt)
@@ -217,7 +222,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         # Only a kept schedule is profiled (4-7 more MAPs: a futile try at 50 Hz must not
         # pay them), and the profiled one is kept only with the same evidence.
         profiled = _profile_sheaths(stages, maps.solve)
-        nxt = schedule(profiled) if profiled != stages else None
+        nxt = maps.schedule(profiled) if profiled != stages else None
         candidate = run(nxt) if nxt is not None else None
         if nxt is not None and candidate is not None and candidate.status == "ok":
             again = accepted(candidate, profiled)
@@ -250,7 +255,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     stats = {**stats, "misfit_tracked": fit_of(estimate).misfit, "tracking_statistic": statistic,
              "tracking_variation": float(hi / lo - 1.0), "knot_spacing": float(maps.spacing),
              "sheathed_path": 1.0, "sheathed_block_rows": float(maps.size),
-             "psi_noise": noise if math.isfinite(noise) else psi_noise(stages)}
+             "psi_noise": noise if math.isfinite(noise) else maps.psi_noise(stages)}
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 

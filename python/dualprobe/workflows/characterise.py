@@ -25,6 +25,7 @@ from dualprobe.workflows.checks import (
     refuse_implausible,
     refuse_opposed,
     refuse_undetermined,
+    residual_ratios,
     spurious_shared_stage,
     undetermined_gain,
     undetermined_stages,
@@ -276,11 +277,7 @@ def characterise_arrays(
             rmse = float(np.sqrt(np.mean((gas[valid] - reference[valid]) ** 2)))
     duration = (t1.size - 1) * ts
     refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static)
-    noise = estimate.noise_std
-    used = estimate.details.get("noise_std_used", noise)
-    levels = (float(used[0]), float(used[1]))  # type: ignore[index]
-    if static is not None:
-        levels = (levels[0], abs(static[0]) * levels[1])
+    levels = _noise_levels(estimate, static)
     # the paper's method has no misfit statistic of its own: its residuals are checked
     check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt)
              if svf or residuals is not None else None)
@@ -329,14 +326,19 @@ def _rival_doubt(
                              float(rival.details.get("residual_to_noise", math.nan)))  # type: ignore[arg-type]
     except EstimationError:
         return None
-    used = rival.details.get("noise_std_used", rival.noise_std)
-    sigma = (float(used[0]),  # type: ignore[index]
-             float(used[1]) * (abs(static[0]) if static is not None else 1.0))  # type: ignore[index]
-    if residuals is not None and any(
-            float(np.sqrt(np.nanmean(r * r))) > MISFIT_LIMIT * max(s, 1e-300)
-            for r, s in zip(residuals, sigma, strict=True)):
+    if residuals is not None and max(
+            residual_ratios(residuals, _noise_levels(rival, static))) > MISFIT_LIMIT:
         return None
     return undetermined(gas, other.gas, gas_std, ts)
+
+
+def _noise_levels(estimate: PairEstimate, static: tuple[float, float] | None
+                  ) -> tuple[float, float]:
+    """The noise levels the residuals are judged by: those the estimation used, sensor 2's
+    in sensor 1's calibration under the affine static model."""
+    used = estimate.details.get("noise_std_used", estimate.noise_std)
+    levels = (float(used[0]), float(used[1]))  # type: ignore[index]
+    return levels if static is None else (levels[0], abs(static[0]) * levels[1])
 
 
 def _reconstruct(

@@ -56,7 +56,7 @@ from dualprobe.workflows.undetermined import Undetermined
 __all__ = ["MISFIT_LIMIT", "PSI_NOISE_LIMIT", "ModelCheck", "check_model",
            "describe_stages",
            "refuse_departing_gas", "refuse_implausible", "refuse_opposed", "refuse_undetermined",
-           "spurious_shared_stage",
+           "residual_ratios", "spurious_shared_stage",
            "undetermined_gain", "undetermined_stages", "unsettled_stages"]
 
 MISFIT_LIMIT = 2.0  # a sensor's residual RMS above twice its noise: structured misfit
@@ -128,6 +128,14 @@ def _misfit(estimate: PairEstimate) -> tuple[float, float]:
     return mu, statistic
 
 
+def residual_ratios(residuals: tuple[np.ndarray, np.ndarray], sigma: tuple[float, float]
+                    ) -> tuple[float, float]:
+    """Each sensor's residual RMS in units of its noise level."""
+    first, second = (float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
+                     for r, s in zip(residuals, sigma, strict=True))
+    return first, second
+
+
 def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray] | None,
                 sigma: tuple[float, float] | None,
                 readings: tuple[np.ndarray, np.ndarray] | None = None,
@@ -184,8 +192,7 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
         reasons.append(rival.reason())
     ratios = None
     if residuals is not None and sigma is not None:
-        ratios = tuple(float(np.sqrt(np.nanmean(r * r))) / max(s, 1e-300)
-                       for r, s in zip(residuals, sigma, strict=True))
+        ratios = residual_ratios(residuals, sigma)
         for i, ratio in enumerate(ratios):
             if ratio > MISFIT_LIMIT:
                 misfits = True
