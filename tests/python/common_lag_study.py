@@ -18,7 +18,9 @@ given each world's true sensors, field_oracle.py), the issue's bound "within 2.5
 can hold in both worlds only if D <= 2.5 (o_A + o_B): the line prints D / (o_A + o_B), and
 "IMPOSSIBLE" where it exceeds 2.5 while the readings are indistinguishable ("distinguishable"
 where they are not: an estimator could then tell the worlds apart). It also runs the product
-on both worlds. Measured (README, "The common-lag limit, tested"): no case was IMPOSSIBLE.
+on both worlds. Measured (README, "The common-lag limit, tested"): of the sweep's near-equal
+pairs none (their readings differ); of equal sheaths of 0.3-0.7 s, 9003 (0.55 s, 20 Hz, D/(oA+oB)
+3.67) and 9004 (0.65 s, 10 Hz, 2.58) are IMPOSSIBLE, 9000-9002 possible (2.03-2.26).
 """
 
 from __future__ import annotations
@@ -42,6 +44,12 @@ CASES: dict[int, tuple[float, float, float, float, tuple[float, float], tuple[fl
     5007: (4.88, 3.74, 0.47, 20.0, (0.5, 0.49), (1.005, 0.975)),
     5003: (5.37, 3.56, 0.35, 10.0, (0.55, 0.62), (0.981, 1.007)),
     9000: (4.0, 3.0, 0.5, 10.0, (0.5, 0.5), (1.0, 1.0)),
+    # equal sheaths of the sizes the sweeps' near-equal failures had (207: 0.70 / 0.71 s,
+    # 801: 0.29 / 0.28 s, 811: 0.55 / 0.50 s), where the readings of both worlds are identical
+    9001: (5.0, 3.7, 0.33, 10.0, (0.7, 0.7), (1.0, 1.0)),
+    9002: (5.0, 2.6, 0.49, 10.0, (0.3, 0.3), (1.0, 1.0)),
+    9003: (4.0, 3.8, 0.37, 20.0, (0.55, 0.55), (1.0, 1.0)),
+    9004: (7.5, 3.0, 0.62, 10.0, (0.65, 0.65), (1.0, 1.0)),
 }
 
 

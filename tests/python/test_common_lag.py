@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 
+import field_independent as fi
 from dualprobe import simulate as sim
 from dualprobe.workflows.characterise import characterise_arrays
+from field_oracle import oracle
 from test_field_conditions import ADC, DURATION, NOISE, RATE
 
 
@@ -47,3 +49,31 @@ def test_a_common_sheath_is_not_undone_and_the_summary_says_so() -> None:
     assert to_seen < 0.2 * to_gas, (to_seen, to_gas)
     assert result.model_check.adequate
     assert "a lag common to both sensors" in result.summary()
+
+
+def test_equal_sheaths_put_the_no_flow_bound_out_of_reach() -> None:
+    """Issue 11 asks, without a flow signal, for a gas within 2.5x the oracle's error on pairs
+    with and without sheaths. Two worlds of the separate generator (field_independent.py):
+    A, a pair with equal sheaths of 0.55 s; B, the same drive cycle and noise with both sheaths
+    moved into the gas (an unsheathed pair seeing a smoother gas). Their readings are the same,
+    so any estimator returns one gas for both, its errors in A and B add up to at least the
+    distance D between the worlds' gases, and it can be within 2.5x both oracles only if
+    D <= 2.5 (o_A + o_B). Here D exceeds that: the bound is unattainable for equal sheaths
+    (tests/python/common_lag_study.py, case 9003)."""
+    kw = {"tau": 4.0, "ratio": 3.8, "m": 0.37, "rate": 20.0, "sheaths": (0.55, 0.55)}
+    a, b = fi.record(9003, **kw), fi.record(9003, common=0.55, **kw)  # type: ignore[arg-type]
+    clean = [fi.record(9003, noise=1e-12, adc=0.0, common=c, **kw)  # type: ignore[arg-type]
+             for c in (0.0, 0.55)]
+    # the noise-free readings of the two worlds differ by the integrator's rounding only: a
+    # chi-square far below 1 against the noise, so no test on the data can tell them apart
+    chi2 = float(np.sum((clean[0].t1 - clean[1].t1) ** 2 + (clean[0].t2 - clean[1].t2) ** 2)
+                 / a.noise ** 2)
+    assert chi2 < 0.01, chi2
+    oracles = [oracle(r.t, r.t1, r.t2, r.gas, r.tau1, r.tau2, (r.noise, r.noise),
+                      sheath1=r.sheath1 if np.any(r.sheath1 > 0) else None,
+                      sheath2=r.sheath2 if np.any(r.sheath2 > 0) else None,
+                      gases=("rw",)).rmse for r in (a, b)]
+    distance = float(np.sqrt(np.mean((a.gas - b.gas) ** 2)))
+    # measured D 5.17 K, oracles 1.16 and 0.24 K: D / (o_A + o_B) 3.67; 2.5 is the issue's
+    # factor itself, no margin is taken from it
+    assert distance > 2.5 * sum(oracles), (distance, oracles)
