@@ -150,12 +150,24 @@ def test_a_first_order_fallback_reuses_the_first_tries_steps_with_the_same_resul
         def __exit__(self, *exc: object) -> None:
             return None
 
-    runs = {"calls": 0, "kept": 0}
+    runs = {"calls": 0, "kept": 0, "repeats": 0}
+    seen: set[tuple[object, ...]] = set()
+
+    def content(value: object) -> object:
+        # an argument's content, as a repeat is judged (arrays by their bytes)
+        if isinstance(value, np.ndarray):
+            return (value.dtype.str, value.shape, value.tobytes())
+        if isinstance(value, tuple | list):
+            return tuple(content(item) for item in value)
+        return value
 
     def counted(step: Any) -> Any:
         def run(*args: Any, **kwargs: Any) -> Any:
             active = stores[-1] if stores and stores[-1].depth else None
             before = len(active) if active is not None else -1
+            key = (step.__name__, content(args), content(sorted(kwargs.items())))
+            runs["repeats"] += key in seen  # the same step with the same arguments again
+            seen.add(key)
             out = step(*args, **kwargs)
             runs["calls"] += 1
             # answered from the store: it holds no new result after the call
@@ -170,19 +182,24 @@ def test_a_first_order_fallback_reuses_the_first_tries_steps_with_the_same_resul
     results = {}
     for store in (Never, Spy):
         monkeypatch.setattr(characterise_module, "Kept", store)
-        runs.update(calls=0, kept=0)
+        runs.update(calls=0, kept=0, repeats=0)
+        seen.clear()
         results[store.__name__] = (characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t,
                                                        reconstruction=None), dict(runs))
     (reference, without), (result, with_store) = results["Never"], results["Spy"]
     assert "order_fallback" in result.estimate.identifiability
     model, expected = result.estimate.flow_model, reference.estimate.flow_model
     assert model is not None and expected is not None and model.kind == "tracked"
-    # the second try's identical calls answered from the store: fewer steps run (a kept
-    # noise split also spares the two trackings it would run inside)
+    # every call of the second try that repeats one of the first try's (the tracking, its
+    # noise split and the two trackings inside it: 4) is answered from the store, and nothing
+    # it spared runs (a kept noise split also spares the trackings inside it); the freer
+    # trackings of the adaptation (estimation/adaptive.py) are not repeats: they take each
+    # try's own filter setting (0.975 s in the first try here, 1.95 s in the fallback)
     ran = {name: runs["calls"] - runs["kept"] for name, runs in (("without", without),
                                                                  ("with", with_store))}
-    assert without["kept"] == 0 and with_store["kept"] >= 2, (with_store, without)
-    assert ran["with"] <= ran["without"] // 2, ran
+    assert without["kept"] == 0 and without["repeats"] >= 4, without
+    assert with_store["kept"] == with_store["repeats"] >= 2, with_store
+    assert ran["with"] == ran["without"] - without["repeats"], (ran, without)
     # the same result: not to the bit, since the same characterisation run twice in one process
     # differs by up to 2e-12 relative (measured: psi 1.9e-12, time constants 2e-14; summation
     # order with memory alignment), so to 1e-9, a thousand times less than any printed digit

@@ -109,9 +109,12 @@ def solve_penalised(system: KnotSystem, penalty: float,
     return TrackSolution(penalty, float(values[0]), v / psi_mean)
 
 
+_LOWEST = 1e-3  # the penalty search's lower bound
+
+
 def choose_penalty(
     system: KnotSystem, effective_rows: float, *, band: float = 2.0,
-    bounds: tuple[float, float] = (1e-3, 1e7), steps: int = 14,
+    bounds: tuple[float, float] = (_LOWEST, 1e7), steps: int = 14,
 ) -> tuple[TrackSolution, TrackSolution, TrackSolution]:
     """(chosen, freest, stiffest): the discrepancy principle on log penalty. The chosen penalty
     is the largest whose misfit stays within ``band`` noise standard deviations
@@ -331,16 +334,19 @@ def track(
     static: tuple[float, float] = (1.0, 0.0),
     passes: int = 2,
     spacing_of_tf: float | None = None,
+    penalty_share: float = 1.0,
 ) -> Tracking:
     """Track the common factor of both sensors' time constants over the record (module
     docstring). ``static`` = (g, o): sensor 2 mapped to sensor 1's calibration, g T2 + o;
     ``effective_rows`` sets the discrepancy band; order 2 refines phi = 1/psi in ``passes``;
     knots every ``spacing_of_tf`` tf (None: tf/2, or tf/4 where psi moves by more than
-    ``_ROUGH_STEP`` from knot to knot at tf/2)."""
+    ``_ROUGH_STEP`` from knot to knot at tf/2); ``penalty_share``: the penalty the
+    discrepancy principle chose times this (a freer psi, :mod:`dualprobe.estimation.adaptive`)."""
 
     def at(fraction: float) -> Tracking:
         return _track(t1, t2, ts, tf=tf, order=order, sigma=sigma, effective_rows=effective_rows,
-                      static=static, passes=passes, spacing_of_tf=fraction)
+                      static=static, passes=passes, spacing_of_tf=fraction,
+                      penalty_share=penalty_share)
 
     if spacing_of_tf is not None:
         return at(spacing_of_tf)
@@ -358,7 +364,7 @@ def track(
 def _track(
     t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, order: int,
     sigma: tuple[float, float], effective_rows: float, static: tuple[float, float],
-    passes: int, spacing_of_tf: float,
+    passes: int, spacing_of_tf: float, penalty_share: float = 1.0,
 ) -> Tracking:
     """:func:`track` with the knots every ``spacing_of_tf`` tf."""
     gain, offset = static
@@ -373,6 +379,8 @@ def _track(
         dense, weights = _dense_columns(u1, u2, ts, tf, current, phi)
         system = knot_system(dense, weights, u2 - u1, spacing, tail, row_filter, free, noise)
         chosen, freest, stiffest = choose_penalty(system, effective_rows)
+        if penalty_share != 1.0:
+            chosen = solve_penalised(system, max(chosen.penalty * penalty_share, _LOWEST))
         psi = system.psi(-chosen.vector[dense.shape[0]:])
         phi = 1.0 / np.maximum(psi, 1e-3)
     psi = _floored(psi)

@@ -6,7 +6,8 @@ path (:func:`_sheathed`: the order-2 cross-relation fit, :mod:`dualprobe.estimat
 and the joint MAP of psi, :mod:`dualprobe.estimation.psi_map`). The result is a schedule psi
 per sample, as with a flow law (:mod:`dualprobe.estimation.field`). A first-order tracked psi
 carries ``psi_noise`` in its evidence (:func:`tracking.split_noise`: how much of it follows the
-noise), which the model check holds to 5 % (``settings.PSI_NOISE_LIMIT``).
+noise), which the model check holds to 5 % (``settings.PSI_NOISE_LIMIT``); it is then freed
+where the data repeat a freer psi (:mod:`dualprobe.estimation.adaptive`).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from dualprobe.estimation import crossfit, flow, psi_map, tracking
+from dualprobe.estimation import adaptive, crossfit, flow, psi_map, tracking
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.field import (
     FlowModel,
@@ -121,8 +122,34 @@ def track_without_flow(
     # the sheathed path, kept only when it fits better (tried once: it is deterministic)
     if suspect or fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
         chosen = _sheathed(t1, t2, base, chosen, run, stats)
+    # a first-order tracked psi freed where the data repeat it (estimation/adaptive.py)
+    chosen = _adapted(t1, t2, chosen, run)
     # does the tracked schedule have a rival that explains the data as well? (rival.py)
     return chosen[0], rival_schedule(t1, t2, chosen[0], chosen[1], run)
+
+
+def _adapted(t1: np.ndarray, t2: np.ndarray, chosen: tuple[PairEstimate, FlowModel],
+             run: RunSvf) -> tuple[PairEstimate, FlowModel]:
+    """``chosen`` with a first-order tracked schedule (not the sheathed path's) replaced by its
+    adaptation (:func:`adaptive.adapt`, with the tracked fit's filter setting, noise and
+    effective rows) where the engine's fit on that explains the data or fits no worse;
+    ``psi_noise`` then includes the noise the adaptation kept."""
+    estimate, model = chosen
+    if model.kind != "tracked" or model.sheathed_path or model.tracking is None:
+        return chosen
+    found = adaptive.adapt(t1, t2, fit_of(estimate), model.tracking, model.psi,
+                           effective_rows(estimate))
+    if found is None:
+        return chosen
+    candidate = run(found.psi)
+    if candidate.status != "ok" or not (explains_data(candidate) or fit_of(candidate).misfit
+                                        <= fit_of(estimate).misfit):
+        return chosen
+    evidence = {**model.evidence, "adaptive_share": found.share,
+                "misfit_adaptive": fit_of(candidate).misfit}
+    if "psi_noise" in evidence:  # (NaN, an unknown noise, stays unknown)
+        evidence["psi_noise"] = math.hypot(evidence["psi_noise"], found.noise)
+    return candidate, dataclasses.replace(model, psi=found.psi, evidence=evidence)
 
 
 def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
