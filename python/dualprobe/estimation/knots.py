@@ -236,7 +236,9 @@ def sparse_system(system: KnotSystem) -> tuple[sp.csc_matrix, sp.csc_matrix, sp.
     transients projected out, R the first-difference penalty on the knot coefficients."""
     k = system.knots
     d = system.dense.shape[0]
-    width = system.band.shape[0]
+    # a band wider than the knots (a short record: 90 s at 10 Hz has fewer knots than its
+    # windows' reach) has no diagonals beyond the last knot
+    width = min(system.band.shape[0], k)
     upper = sp.diags([system.band[j, : k - j] for j in range(width)], list(range(width)),
                      shape=(k, k))
     knot_block = (upper + sp.triu(upper, 1).T).tocsc()
