@@ -39,7 +39,7 @@ WINDOW = 30.0  # s: a manoeuvre's length on a drive cycle (as workflows/undeterm
 
 @dataclass(frozen=True)
 class Adapted:
-    """``psi`` (N,) the adapted schedule (mean log 0); ``share`` the mean share kept;
+    """``psi`` (N,) the adapted schedule (mean 1); ``share`` the mean share kept;
     ``noise`` the RMS of log psi's noise that the kept share brings (``sqrt(mean k^2 n)``)."""
 
     psi: np.ndarray
@@ -83,9 +83,10 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
         noises.append(share * share * noise)
     rows = np.arange(n)
     share_at = np.interp(rows, centres, shares)
-    log_psi = own + share_at * (freer - own)
-    log_psi -= float(np.mean(log_psi))
-    return Adapted(np.exp(log_psi), float(np.mean(share_at)),
+    psi = np.exp(own + share_at * (freer - own))
+    # mean 1, as the tracking's (tracking.solve_penalised): the reported time constants stay
+    # those at the record's mean factor
+    return Adapted(psi / float(np.mean(psi)), float(np.mean(share_at)),
                    math.sqrt(max(float(np.mean(np.interp(rows, centres, noises))), 0.0)))
 
 
