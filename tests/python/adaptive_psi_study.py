@@ -4,15 +4,12 @@
 
 The tracking's penalty is chosen for the whole record (the discrepancy principle,
 estimation/tracking.py), so a stretch whose psi barely moves the record's misfit (the readings
-nearly coincide while gas and flow move together, a cruise's wobble) is smoothed there. This
-study tracks psi again at a tenth of the chosen penalty, on the whole record and on its even
-and odd rows apart (the same gas and flow, independent noise), and per 30 s window (half
-overlapping) keeps the share k = s / (s + n) of the freer psi's departure from the tracked
-one, with s the product of the halves' departures (what they repeat: signal) and n a quarter
-of their squared difference (the whole record's noise in it); windows interpolated between
-centres. Where a freer psi is not positive everywhere, nothing is kept. Each schedule is
-judged by the product's own fit and reconstruction given it as a flow column (`tracked` is the
-product's schedule so given, which reproduces its gas), against the oracle (field_oracle.py).
+nearly coincide while gas and flow move together, a cruise's wobble) is smoothed there. The
+product frees it where the data repeat a freer psi (estimation/adaptive.py: tracked again at a
+tenth of the penalty on the whole record and on its even and odd rows apart, the share of the
+freer psi's departure that both halves repeat kept per 30 s window). This study runs the
+product with and without that step on each case and prints both gases' errors against the
+oracle (field_oracle.py), the share kept, psi_noise and the model check's verdict.
 
 Cases: u0-u7 unsheathed pairs of the separate generator (field_independent.py, seeds
 7700-7707: fast element 3-8 s, ratio 2-4, m 0.3-0.7, 5-20 Hz); b9002 case 9002's unsheathed
@@ -28,17 +25,14 @@ import sys
 
 import numpy as np
 
-import dualprobe.estimation.tracking as tracking
 import field_independent as fi
 from common_lag_study import CASES, _oracle
-from dualprobe.estimation.field import effective_rows, fit_of
+from dualprobe.estimation import without_flow
 from dualprobe.io import EstimationError
-from dualprobe.workflows.characterise import characterise_arrays
+from dualprobe.workflows.characterise import Characterisation, characterise_arrays
 from field_oracle import oracle
 from test_field_conditions import Case, _oracle_rmse, _record
 
-_FREER = 0.1  # of the chosen penalty
-_WINDOW = 30.0  # s
 _PROJECT = {204: Case(0.51, 2.23, (0.0, 0.0), (1.002, 0.998), 204),
             206: Case(0.5, 3.51, (0.0, 0.0), (1.018, 0.981), 206),
             803: Case(0.32, 2.07, (0.0, 0.0), (1.0, 1.0), 803),
@@ -74,80 +68,36 @@ def _pair(label: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, np.nda
     return r.t, r.t1, r.t2, r.ts, r.gas, best
 
 
-def _at_penalty_share(share: float) -> None:
-    """Make tracking.choose_penalty return its choice times ``share`` (1: unchanged)."""
-    original = getattr(tracking, "_study_original", tracking.choose_penalty)
-    tracking._study_original = original  # type: ignore[attr-defined]
-
-    def choose(system, rows, **kw):  # type: ignore[no-untyped-def]
-        chosen, freest, stiffest = original(system, rows, **kw)
-        if share != 1.0:
-            chosen = tracking.solve_penalised(system, max(chosen.penalty * share, 1e-3))
-        return chosen, freest, stiffest
-
-    tracking.choose_penalty = choose  # type: ignore[assignment]
-
-
-def _centred_log(psi: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray | None:
-    if not np.all(psi > 0.0):
-        return None
-    out = np.interp(np.arange(n), rows[: psi.size], np.log(psi))
-    return out - float(np.mean(out))
+def _characterised(t: np.ndarray, t1: np.ndarray, t2: np.ndarray, ts: float,
+                   adapted: bool) -> Characterisation:
+    """The product's characterisation, with the adaptation or with it left out."""
+    original = without_flow._adapted
+    if not adapted:
+        without_flow._adapted = lambda t1, t2, chosen, run: chosen  # type: ignore[assignment]
+    try:
+        return characterise_arrays(t1, t2, ts, time=t, reconstruction="smoother")
+    finally:
+        without_flow._adapted = original  # type: ignore[assignment]
 
 
 def study(label: str) -> None:
     t, t1, t2, ts, gas, best = _pair(label)
-    ours = characterise_arrays(t1, t2, ts, time=t, reconstruction="smoother")
-    assert ours.gas_estimate is not None
-    model = ours.estimate.flow_model
-    if model is None or model.kind != "tracked" or model.tracking is None or model.sheathed_path:
-        print(f"{label}: not a first-order tracked schedule", flush=True)
-        return
-    fit, track = fit_of(ours.estimate), model.tracking
-    kw = {"tf": fit.tf, "order": 1, "sigma": fit.sigma, "static": track.static,
-          "spacing_of_tf": track.spacing_of_tf}
-    rows = effective_rows(ours.estimate)
-    n = t1.size
-    _at_penalty_share(_FREER)
-    try:
-        full = tracking.track(t1, t2, ts, effective_rows=rows, **kw)
-        halves = [tracking.track(t1[k::2], t2[k::2], 2.0 * ts, effective_rows=0.5 * rows, **kw)
-                  for k in (0, 1)]
-    finally:
-        _at_penalty_share(1.0)
-    tracked = np.log(model.psi) - float(np.mean(np.log(model.psi)))
-    freer = _centred_log(full.psi, np.arange(n), n)
-    even = _centred_log(halves[0].psi, np.arange(0, n, 2), n)
-    odd = _centred_log(halves[1].psi, np.arange(1, n, 2), n)
-    schedules = {"tracked": tracked}
-    kept = math.nan
-    if freer is not None and even is not None and odd is not None:
-        de, do = even - tracked, odd - tracked
-        width = max(2, round(_WINDOW / ts))
-        centres, shares = [], []
-        for start in range(0, n, width // 2):
-            part = slice(start, min(n, start + width))
-            signal = max(float(np.mean(de[part] * do[part])), 0.0)
-            noise = float(np.mean((de[part] - do[part]) ** 2)) / 4.0
-            centres.append(0.5 * (start + min(n, start + width) - 1))
-            shares.append(signal / (signal + noise) if signal + noise > 0.0 else 0.0)
-        share = np.interp(np.arange(n), centres, shares)
-        kept = float(np.mean(share))
-        schedules["freer"] = freer
-        schedules["adaptive"] = tracked + share * (freer - tracked)
-    found = {}
-    for name, log_psi in schedules.items():
+    parts = []
+    for adapted in (False, True):
         try:
-            result = characterise_arrays(t1, t2, ts, time=t, reconstruction="smoother",
-                                         flow=np.exp(log_psi), flow_column="psi", order=1)
+            result = _characterised(t, t1, t2, ts, adapted)
         except EstimationError as exc:
-            found[name] = f"refused ({str(exc)[:50]})"
+            parts.append(f"refused ({str(exc)[:50]})")
             continue
-        assert result.gas_estimate is not None
-        found[name] = f"{_rms(result.gas_estimate - gas) / best:.2f}x"
-    print(f"{label}: ours {_rms(ours.gas_estimate - gas) / best:.2f}x the oracle "
-          f"({best:.3f} K); given as a flow: " + ", ".join(f"{k} {v}" for k, v in found.items())
-          + f"; mean share kept {kept:.2f}", flush=True)
+        assert result.gas_estimate is not None and result.model_check is not None
+        model = result.estimate.flow_model
+        evidence = model.evidence if model is not None else {}
+        parts.append(f"{_rms(result.gas_estimate - gas) / best:.2f}x, share "
+                     f"{evidence.get('adaptive_share', 0.0):.2f}, psi_noise "
+                     f"{evidence.get('psi_noise', math.nan):.3f}, adequate "
+                     f"{result.model_check.adequate}")
+    print(f"{label} (oracle {best:.3f} K): without the adaptation {parts[0]}; with it "
+          f"{parts[1]}", flush=True)
 
 
 if __name__ == "__main__":
