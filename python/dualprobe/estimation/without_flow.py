@@ -176,6 +176,10 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         maps.set_model(cross.static, taus[0][0])
     except (ValueError, np.linalg.LinAlgError, RuntimeError):
         return chosen
+    if not all(math.isfinite(pair[0]) and pair[0] > 0.0 for pair in cross.stages):
+        # no element to start from (90 s at 50 Hz with one sheath: an element of 0 s or less,
+        # which left a sensor no stage at all and the MAP's chain an empty one: IndexError)
+        return chosen
     n_eff = effective_rows(base)
 
     def accepted(estimate: PairEstimate, stages: Sequence[tuple[float, ...]]
