@@ -12,13 +12,12 @@ floored at 0) and ``n`` a quarter of their mean squared difference (the noise th
 record's freer psi carries, each half having about twice its variance); ``k`` is interpolated
 between window centres. The noise kept with it, ``k^2 n``, joins ``psi_noise`` in quadrature.
 
-Measured (tests/python/adaptive_psi_study.py, 2026-12-03; each schedule judged by the product's
-fit and reconstruction given it): on 14 unsheathed pairs of both generators the freer psi was
-positive on 10; there 4.39x -> 2.58x the oracle (an unsheathed pair on a smooth gas, whose
-tracked psi was 7 % RMS off in a cruise wobble), 1.89x -> 1.35x, 1.64x -> 1.48x, 1.53x -> 1.40x,
-the other six within 0.03x, none worse by more than 0.01x; the freer psi alone was worse than
-the tracked one on four of them (up to 1.42x -> 1.55x). Where a freer psi is not positive
-everywhere (rows at idle with nothing to pin it) nothing is kept.
+Measured in the product with and without this step (tests/python/adaptive_psi_study.py,
+2026-12-03; 14 unsheathed pairs of both generators): 1.89x -> 1.35x the oracle, 1.64x -> 1.48x,
+1.53x -> 1.40x, 1.24x -> 1.21x, 1.26x -> 1.24x, an unsheathed pair on a smooth gas (whose
+tracked psi was 7 % RMS off in a cruise wobble) 4.39x -> 2.58x, the others within 0.02x; the
+freer psi alone was worse than the tracked one on five of ten (up to 1.42x -> 1.55x). Where a
+freer psi is not positive everywhere (rows at idle with nothing to pin it) nothing is kept.
 """
 
 from __future__ import annotations
@@ -50,8 +49,9 @@ class Adapted:
 def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
           psi: np.ndarray, effective_rows: float) -> Adapted | None:
     """``psi`` (the tracked schedule) adapted as the module docstring says, with the tracking's
-    static map and knots and the constant fit ``fit``'s filter setting and noise; None where a
-    freer psi cannot be tracked or is not positive everywhere."""
+    static map and knots and the filter setting and noise of ``fit`` (the engine's fit on the
+    tracked schedule, this try's order); None where a freer psi cannot be tracked or is not
+    positive everywhere."""
     n = t1.size
     def freer_track(a: np.ndarray, b: np.ndarray, ts: float, rows: float) -> np.ndarray:
         return tracking.track(a, b, ts, tf=fit.tf, order=1, sigma=fit.sigma,
