@@ -64,36 +64,36 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
                   for k in (0, 1)]
     except tracking.TrackingError:
         return None
-    freer = _centred_log(full, np.arange(n), n)
-    even = _centred_log(halves[0], np.arange(0, n, 2), n)
-    odd = _centred_log(halves[1], np.arange(1, n, 2), n)
-    own = _centred_log(psi, np.arange(n), n)
+    rows = np.arange(n)
+    freer = _centred_log(full, rows, rows)
+    even = _centred_log(halves[0], rows[0::2], rows)
+    odd = _centred_log(halves[1], rows[1::2], rows)
+    own = _centred_log(psi, rows, rows)
     if freer is None or even is None or odd is None or own is None:
         return None
     de, do = even - own, odd - own
     width = max(2, round(WINDOW / fit.ts))
     centres, shares, noises = [], [], []
     for start in range(0, n, width // 2):
-        part = slice(start, min(n, start + width))
-        signal = max(float(np.mean(de[part] * do[part])), 0.0)
-        noise = float(np.mean((de[part] - do[part]) ** 2)) / 4.0
+        stop = min(n, start + width)
+        signal = max(float(np.mean(de[start:stop] * do[start:stop])), 0.0)
+        noise = float(np.mean((de[start:stop] - do[start:stop]) ** 2)) / 4.0
         share = signal / (signal + noise) if signal + noise > 0.0 else 0.0
-        centres.append(0.5 * (start + min(n, start + width) - 1))
+        centres.append(0.5 * (start + stop - 1))
         shares.append(share)
         noises.append(share * share * noise)
-    rows = np.arange(n)
     share_at = np.interp(rows, centres, shares)
     psi = np.exp(own + share_at * (freer - own))
     # mean 1, as the tracking's (tracking.solve_penalised): the reported time constants stay
     # those at the record's mean factor
     return Adapted(psi / float(np.mean(psi)), float(np.mean(share_at)),
-                   math.sqrt(max(float(np.mean(np.interp(rows, centres, noises))), 0.0)))
+                   math.sqrt(float(np.mean(np.interp(rows, centres, noises)))))
 
 
-def _centred_log(psi: np.ndarray, rows: np.ndarray, n: int) -> np.ndarray | None:
-    """log psi at every row (each tracked row's value, linear between), mean 0; None where
-    psi is not positive everywhere."""
+def _centred_log(psi: np.ndarray, at: np.ndarray, rows: np.ndarray) -> np.ndarray | None:
+    """log psi (given at the rows ``at``) at every row of ``rows``, linear between, mean 0;
+    None where psi is not positive everywhere."""
     if not np.all(psi > 0.0):
         return None
-    out = np.interp(np.arange(n), rows[: psi.size], np.log(psi))
+    out = np.interp(rows, at[: psi.size], np.log(psi))
     return out - float(np.mean(out))
