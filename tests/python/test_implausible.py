@@ -31,6 +31,15 @@ def _dip(depth: float) -> np.ndarray:
     return psi
 
 
+def _readings(still: bool) -> tuple[np.ndarray, np.ndarray]:
+    """Both sensors' readings at every row: a drive cycle's swings of tens of kelvin, or a
+    gas standing still (noise of 0.05 K only)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(12_000) * 0.1
+    gas = np.full(t.size, 560.0) if still else 560.0 + 60.0 * np.sin(2.0 * np.pi * t / 90.0)
+    return (gas + 0.05 * rng.standard_normal(t.size), gas + 0.05 * rng.standard_normal(t.size))
+
+
 def test_a_tracked_dip_is_blamed_on_the_tracking_not_the_record() -> None:
     """Sensor 1 drifting 3 K against sensor 2 over 20 min (separate generator, 10 Hz, no flow
     column; 88 s to characterise, hence this unit test): the tracker made the drift a psi
@@ -41,13 +50,28 @@ def test_a_tracked_dip_is_blamed_on_the_tracking_not_the_record() -> None:
     """
     with pytest.raises(EstimationError) as caught:
         refuse_implausible(_estimate("tracked", _dip(0.041)), _DURATION, _COLUMNS, None,
-                           (np.zeros(3), np.zeros(3)))
+                           _readings(still=False))
     message = str(caught.value)
     # 25.2 s / 0.041, the dip's first row (10 200 of 12 000), 1 / 0.041 times the median
     assert message.startswith("T_m2: the tracked time constant reaches 614.6 s at 1020 s "
                               "into the record (24.4 times its median)")
     assert "drifting" in message and "--track off" in message
-    assert "record longer" not in message
+    assert "record longer" not in message and "stands still" not in message
+
+
+def test_a_tracked_dip_where_the_gas_stands_still_says_so() -> None:
+    """Where the readings hardly move around the dip, nothing determines psi there: a 60 s
+    drive cycle (10 Hz) whose first 9 s idle, the tracked time constant 5-1700 times its median
+    at 0 s, was refused blaming a drifting sensor; the message now names the still gas and the
+    remedy (--window). Within a median time constant either side of the dip (25 s here) the
+    readings move by white noise's range over 500 rows, about 6.5 standard deviations, under
+    checks._STILL = 10; the drive cycle's swings by ~2000."""
+    with pytest.raises(EstimationError) as caught:
+        refuse_implausible(_estimate("tracked", _dip(0.041)), _DURATION, _COLUMNS, None,
+                           _readings(still=True))
+    message = str(caught.value)
+    assert "the gas stands still" in message and "--window" in message
+    assert "drifting" not in message and "record longer" not in message
 
 
 @pytest.mark.parametrize("kind,depth,taus", [

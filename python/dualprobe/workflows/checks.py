@@ -384,6 +384,20 @@ def refuse_opposed(static: tuple[float, float] | None, columns: tuple[str, str])
             "(an inverted channel, a reversed thermocouple) or is not a temperature")
 
 
+# Readings whose range over a median time constant either side stays within this many noise
+# standard deviations: the gas stood still there (a 9 s idle start of a 60 s drive cycle: 0.1 K,
+# 2 standard deviations, where the tracked time constant rose 5-1700 times its median)
+_STILL = 10.0
+
+
+def _movement(readings: tuple[np.ndarray, np.ndarray], row: int, share: float) -> float:
+    """The larger range of the two readings within ``share`` of the record either side of
+    ``row``."""
+    reach = max(1, math.ceil(share * readings[0].size))
+    spans = [r[max(0, row - reach):row + reach + 1] for r in readings]
+    return max(float(np.ptp(r)) if r.size else math.inf for r in spans)
+
+
 def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[str, str],
                        residuals: tuple[np.ndarray, np.ndarray] | None,
                        readings: tuple[np.ndarray, np.ndarray], gas: np.ndarray | None = None,
@@ -402,19 +416,27 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
             # only the tracked schedule's dip is that long: one sensor drifting 3 K against
             # the other over 20 min was tracked as time constants varying 470-fold (1.3 s to
             # 616 s) and refused with "record longer", which the record did not need
-            at = float(np.argmin(psi)) / max(psi.size - 1, 1) * duration
+            row = int(np.argmin(psi))
+            at = row / max(psi.size - 1, 1) * duration
+            moved = _movement(readings, row, max(taus) / float(np.median(psi)) / duration)
+            cause = (f"the readings move by only {moved:.2g} K there: the gas stands still, "
+                     "so nothing there determines a time constant; trim the record to where "
+                     "the temperature changes (--window)"
+                     if moved < _STILL * max(estimate.noise_std) else
+                     "the tracking absorbed something the model lacks (one sensor drifting "
+                     "against the other, a channel that stops following the gas), not a time "
+                     "constant; check both channels there")
             raise EstimationError(
                 f"{column}: the tracked time constant reaches {longest:.4g} s at {at:.0f} s "
                 f"into the record ({float(np.median(psi) / np.min(psi)):.3g} times its "
-                f"median), longer than a third of the record ({duration:.4g} s): the tracking "
-                "absorbed something the model lacks (one sensor drifting against the other, a "
-                "channel that stops following the gas), not a time constant; check both "
-                "channels there, give --flow, or --track off for constant time constants "
-                "(their misfit reported)")
+                f"median), longer than a third of the record ({RECORD_FRACTION * duration:.4g} "
+                f"s of {duration:.4g} s): {cause}, give --flow, or --track off for constant "
+                "time constants (their misfit reported)")
         if not math.isfinite(longest) or longest > RECORD_FRACTION * duration:
             raise EstimationError(
                 f"{column}: time constant {longest:.4g} s is longer than a third of the record "
-                f"({duration:.4g} s): the record cannot determine it; record longer, or with "
+                f"({RECORD_FRACTION * duration:.4g} s of {duration:.4g} s): the record cannot "
+                "determine it; record longer, or with "
                 "larger and faster temperature changes"
                 + (" (or use --order 1)" if len(taus) > 1 else ""))
     mu, statistic = _misfit(estimate)
