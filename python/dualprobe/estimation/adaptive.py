@@ -17,7 +17,10 @@ Measured in the product with and without this step (tests/python/adaptive_psi_st
 1.53x -> 1.40x, 1.24x -> 1.21x, 1.26x -> 1.24x, an unsheathed pair on a smooth gas (whose
 tracked psi was 7 % RMS off in a cruise wobble) 4.39x -> 2.58x, the others within 0.02x; the
 freer psi alone was worse than the tracked one on five of ten (up to 1.42x -> 1.55x). Where a
-freer psi is not positive everywhere (rows at idle with nothing to pin it) nothing is kept.
+freer psi is not positive (rows at idle with nothing to pin it) those rows keep the tracked psi
+and a window holding one keeps nothing (until 2026-12-04 nothing at all was kept then: u3 of the
+study 1.74x -> 1.34x; three more pairs are now adapted but the engine's fit rejects the result,
+the other ten unchanged within 0.02x).
 """
 
 from __future__ import annotations
@@ -50,8 +53,8 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
           psi: np.ndarray, effective_rows: float) -> Adapted | None:
     """``psi`` (the tracked schedule) adapted as the module docstring says, with the tracking's
     static map and knots and the filter setting and noise of ``fit`` (the engine's fit on the
-    tracked schedule, this try's order); None where a freer psi cannot be tracked or is not
-    positive everywhere."""
+    tracked schedule, this try's order); None where a freer psi cannot be tracked or is
+    positive nowhere."""
     n = t1.size
     def freer_track(a: np.ndarray, b: np.ndarray, ts: float, rows: float) -> np.ndarray:
         return tracking.track(a, b, ts, tf=fit.tf, order=1, sigma=fit.sigma,
@@ -65,35 +68,40 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
     except tracking.TrackingError:
         return None
     rows = np.arange(n)
-    freer = _centred_log(full, rows, rows)
-    even = _centred_log(halves[0], rows[0::2], rows)
-    odd = _centred_log(halves[1], rows[1::2], rows)
-    own = _centred_log(psi, rows, rows)
-    if freer is None or even is None or odd is None or own is None:
+    logs = [_log(full, rows, rows), _log(halves[0], rows[0::2], rows),
+            _log(halves[1], rows[1::2], rows), _log(psi, rows, rows)]
+    # rows where a freer psi is not positive (at idle, nothing pins it) keep the tracked psi:
+    # every log is centred over the rows where all are defined, and a window holding one of
+    # the others keeps nothing
+    defined = np.all(np.isfinite(logs), axis=0)
+    if not np.any(defined):
         return None
+    freer, even, odd, own = (x - float(np.mean(x[defined])) for x in logs)
     de, do = even - own, odd - own
     width = max(2, round(WINDOW / fit.ts))
     centres, shares, noises = [], [], []
     for start in range(0, n, width // 2):
         stop = min(n, start + width)
-        signal = max(float(np.mean(de[start:stop] * do[start:stop])), 0.0)
-        noise = float(np.mean((de[start:stop] - do[start:stop]) ** 2)) / 4.0
+        signal, noise = 0.0, 0.0
+        if np.all(defined[start:stop]):
+            signal = max(float(np.mean(de[start:stop] * do[start:stop])), 0.0)
+            noise = float(np.mean((de[start:stop] - do[start:stop]) ** 2)) / 4.0
         share = signal / (signal + noise) if signal + noise > 0.0 else 0.0
         centres.append(0.5 * (start + stop - 1))
         shares.append(share)
         noises.append(share * share * noise)
     share_at = np.interp(rows, centres, shares)
-    psi = np.exp(own + share_at * (freer - own))
+    psi = np.exp(own + share_at * np.where(defined, freer - own, 0.0))
     # mean 1, as the tracking's (tracking.solve_penalised): the reported time constants stay
     # those at the record's mean factor
     return Adapted(psi / float(np.mean(psi)), float(np.mean(share_at)),
                    math.sqrt(float(np.mean(np.interp(rows, centres, noises)))))
 
 
-def _centred_log(psi: np.ndarray, at: np.ndarray, rows: np.ndarray) -> np.ndarray | None:
-    """log psi (given at the rows ``at``) at every row of ``rows``, linear between, mean 0;
-    None where psi is not positive everywhere."""
-    if not np.all(psi > 0.0):
-        return None
-    out = np.interp(rows, at[: psi.size], np.log(psi))
-    return out - float(np.mean(out))
+def _log(psi: np.ndarray, at: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """log psi (given at the rows ``at``) at every row of ``rows``, linear between; NaN where
+    psi is not positive (and between such a row and its neighbours)."""
+    values = np.full(psi.size, np.nan)
+    positive = psi > 0.0
+    values[positive] = np.log(psi[positive])
+    return np.interp(rows, at[: psi.size], values)
