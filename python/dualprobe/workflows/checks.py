@@ -385,8 +385,9 @@ def refuse_opposed(static: tuple[float, float] | None, columns: tuple[str, str])
 
 
 # Readings whose range over a median time constant either side stays within this many noise
-# standard deviations: the gas stood still there (a 9 s idle start of a 60 s drive cycle: 0.1 K,
-# 2 standard deviations, where the tracked time constant rose 5-1700 times its median)
+# standard deviations: the gas stood still there (a 7 s idle start of a 60 s drive cycle: 0.28 K,
+# 5.6 standard deviations, where the tracked time constant rose 5-1700 times its median; the
+# range of white noise over 500 rows is about 6.5; a drive cycle's swings are hundreds)
 _STILL = 10.0
 
 
