@@ -1,5 +1,5 @@
 """The refusal of time constants longer than a third of the record
-(:func:`dualprobe.workflows.checks.refuse_implausible`): what it blames."""
+(:func:`dualprobe.workflows.refusals.refuse_implausible`): what it blames."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from dualprobe.estimation import PairEstimate
 from dualprobe.estimation.field import FlowModel
 from dualprobe.io import EstimationError
-from dualprobe.workflows.checks import refuse_implausible
+from dualprobe.workflows.refusals import refuse_implausible
 
 _COLUMNS = ("T_m1", "T_m2")
 _DURATION = 1200.0
@@ -65,7 +65,7 @@ def test_a_tracked_dip_where_the_gas_stands_still_says_so() -> None:
     at 0 s, was refused blaming a drifting sensor; the message now names the still gas and the
     remedy (--window). Within a median time constant either side of the dip (25 s here) the
     readings move by white noise's range over 500 rows, about 6.5 standard deviations, under
-    checks._STILL = 10; the drive cycle's swings by ~2000."""
+    refusals._STILL = 10; the drive cycle's swings by ~2000."""
     with pytest.raises(EstimationError) as caught:
         refuse_implausible(_estimate("tracked", _dip(0.041)), _DURATION, _COLUMNS, None,
                            _readings(still=True))

@@ -21,10 +21,6 @@ from dualprobe.workflows.checks import (
     MISFIT_LIMIT,
     check_model,
     describe_stages,
-    refuse_departing_gas,
-    refuse_implausible,
-    refuse_opposed,
-    refuse_undetermined,
     residual_ratios,
     spurious_shared_stage,
     undetermined_gain,
@@ -32,6 +28,12 @@ from dualprobe.workflows.checks import (
     unsettled_stages,
 )
 from dualprobe.workflows.readings import prepare_readings
+from dualprobe.workflows.refusals import (
+    refuse_departing_gas,
+    refuse_implausible,
+    refuse_opposed,
+    refuse_undetermined,
+)
 from dualprobe.workflows.undetermined import Undetermined, undetermined
 
 __all__ = [
