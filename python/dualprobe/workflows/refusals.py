@@ -14,6 +14,9 @@ sharing a time constant while the model misfits (a common factor, which no pair 
 that departs from both sensors by more than two lagging sensors allow while the model misfits
 (``LAG_MARGIN``), or a reconstruction that predicts a sensor worse than the other sensor's raw
 reading does (the model is worse than no model).
+A tracked schedule (no flow column) is refused, with where, when its reconstruction departs
+from the faster sensor by far more than that sensor lags (``SURGE_MARGIN``): a time constant
+the tracking made up at a fast change of the gas put the gas 447 K off there.
 An asked-for order 2 whose time constants the data do not determine is refused too.
 """
 
@@ -22,6 +25,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import scipy.ndimage
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
 from dualprobe.estimation.orders import COMPLEX_NOTE
@@ -34,8 +38,8 @@ from dualprobe.workflows.checks import (
     undetermined_stages,
 )
 
-__all__ = ["LAG_MARGIN", "refuse_departing_gas", "refuse_implausible", "refuse_opposed",
-           "refuse_undetermined"]
+__all__ = ["LAG_MARGIN", "SURGE_MARGIN", "refuse_departing_gas", "refuse_implausible",
+           "refuse_opposed", "refuse_surging_gas", "refuse_undetermined", "surge"]
 
 # Two sensors lagging the same gas: T_g - T_fast ~ tau_fast T' and T_slow - T_fast ~ (tau_slow -
 # tau_fast) T', so the gas departs from the fast sensor by about tau_fast / (tau_slow - tau_fast)
@@ -134,6 +138,8 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 "determine it; record longer, or with "
                 "larger and faster temperature changes"
                 + (" (or use --order 1)" if len(taus) > 1 else ""))
+    if tracked and gas is not None:
+        refuse_surging_gas(estimate, gas, readings, static, duration, columns)
     mu, statistic = misfit(estimate)
     misfits = math.isfinite(statistic) and statistic > GAP_THRESHOLD
     confidence = estimate.confidence
@@ -204,3 +210,62 @@ def refuse_departing_gas(estimate: PairEstimate, gas: np.ndarray,
             f"model does not explain the signals (misfit {mu:.3g} x the noise): the "
             f"reconstruction cannot be trusted; {_advice(estimate)}, or try --order 1 or "
             "dualprobe diagnose")
+
+
+# A tracked schedule's reconstruction may depart from the faster sensor by at most this many
+# times what that sensor lags by: its time constants (all stages, at the schedule's median) times
+# its steepest change within the slower sensor's time constant either side, plus 10 noise
+# standard deviations. Measured (2026-12-04) on reconstructions within 1-2x the oracle: 0.72-1.57
+# on the 16 tracked sweep pairs (field_sweep.py 1 8 noflow, field_sweep_independent.py 53 8), and
+# 0.63-2.30 on the 32 runs of logger_sweep.py 81 8 / 82 8 short (1-50 Hz, jitter, holds; tracked
+# 0.67-1.93); 7.07 on the one that put the gas 447 K off with exit 0 (a tracked time constant at
+# 6.9 times its median within 1.5 s of a 160 K drop of the gas, 2 Hz, 400 s; test_surge.py).
+SURGE_MARGIN = 4.0
+_SURGE_FLOOR = 10.0  # noise standard deviations: a still gas's departure is noise
+
+
+def _reading(readings: tuple[np.ndarray, np.ndarray], static: tuple[float, float] | None,
+             sensor: int) -> np.ndarray:
+    """A sensor's readings in sensor 1's calibration (the reconstruction's)."""
+    if sensor == 0 or static is None:
+        return readings[sensor]
+    return static[0] * readings[1] + static[1]
+
+
+def surge(estimate: PairEstimate, gas: np.ndarray, readings: tuple[np.ndarray, np.ndarray],
+          static: tuple[float, float] | None, ts: float) -> tuple[float, int, int, float]:
+    """(the largest departure of ``gas`` from the faster sensor over what that sensor lags by,
+    the row where, the faster sensor's index, the departure there in K): ``SURGE_MARGIN``."""
+    psi = estimate.flow_model.psi if estimate.flow_model is not None else None
+    scale = float(np.median(psi)) if psi is not None else 1.0
+    lags = [sum(taus) / scale for taus in estimate.time_constants]
+    fast = int(np.argmin(lags))
+    u = _reading(readings, static, fast)
+    reach = max(1, round(max(lags) / ts))
+    slope = scipy.ndimage.maximum_filter1d(np.abs(np.gradient(u, ts)), 2 * reach + 1)
+    allowed = lags[fast] * slope + _SURGE_FLOOR * max(estimate.noise_std)
+    departure = np.abs(gas - u)
+    ratio = np.where(np.isfinite(departure), departure / allowed, 0.0)
+    row = int(np.argmax(ratio))
+    return float(ratio[row]), row, fast, float(departure[row])
+
+
+def refuse_surging_gas(estimate: PairEstimate, gas: np.ndarray,
+                       readings: tuple[np.ndarray, np.ndarray],
+                       static: tuple[float, float] | None, duration: float,
+                       columns: tuple[str, str]) -> None:
+    """Refuse a reconstruction that departs from the faster sensor by more than
+    ``SURGE_MARGIN`` times what that sensor lags by (:func:`surge`)."""
+    ts = duration / max(readings[0].size - 1, 1)
+    ratio, row, fast, departure = surge(estimate, gas, readings, static, ts)
+    if not ratio > SURGE_MARGIN:
+        return
+    psi = estimate.flow_model.psi if estimate.flow_model is not None else None
+    there = (f" (the tracked time constant there {float(np.median(psi) / psi[row]):.3g} times "
+             "its median)" if psi is not None else "")
+    raise EstimationError(
+        f"the reconstructed gas departs from {columns[fast]} by {departure:.4g} K at "
+        f"{row * ts:.0f} s into the record, {ratio:.3g} times what a sensor lagging with its "
+        f"time constants allows{there}: the tracking absorbed something the model lacks "
+        "there, not a time constant; give --flow, trim the record (--window), or --track off "
+        "for constant time constants (their misfit reported)")
