@@ -6,11 +6,13 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 import field_independent as fi
+from dualprobe.cli import main
 from dualprobe.estimation import PairEstimate
 from dualprobe.estimation.field import FlowModel
 from dualprobe.io import EstimationError
@@ -75,16 +77,23 @@ def test_the_faster_sensor_is_the_one_with_the_shorter_lag_in_its_scale() -> Non
     assert fast == 1 and ratio <= 1.1  # as in the first test
 
 
-def test_a_tracked_surge_at_a_fast_gas_drop_is_refused_and_the_flow_explains_it() -> None:
+@pytest.fixture(scope="module")
+def drop() -> fi.Recording:
+    """The separate generator's case 82007 (logger_sweep.py 82 8 short), below."""
+    return fi.record(82007, duration=400.0, tau=2.71, ratio=1.85, m=0.47, rate=2.0,
+                     sheaths=(0.46, 0.26), gains=(0.968, 1.01), noise=0.05, adc=0.0,
+                     jitter=0.002, hold=1)
+
+
+def test_a_tracked_surge_at_a_fast_gas_drop_is_refused_and_the_flow_explains_it(
+        drop: fi.Recording) -> None:
     """Separate generator, 2 Hz, 400 s, 2.71 / 5.01 s elements behind 0.46 / 0.26 s sheaths,
     m 0.47, gains 0.968 / 1.01 (logger_sweep.py 82 8 short, case 82007). Without the flow the
     tracked time constant rose to about 7 times its median at a 160 K drop of the gas (t = 27
     s) and the reconstruction went to 32 K for 480 K (447 K off; the raw fast sensor is 17.7 K
     RMS off), exit 0 with a warning: now refused (7.07 times the allowance, SURGE_MARGIN 4).
     With the mass flow the same pair is within 1.5x the oracle (1.03x measured) and passes."""
-    rec = fi.record(82007, duration=400.0, tau=2.71, ratio=1.85, m=0.47, rate=2.0,
-                    sheaths=(0.46, 0.26), gains=(0.968, 1.01), noise=0.05, adc=0.0,
-                    jitter=0.002, hold=1)
+    rec = drop
     with pytest.raises(EstimationError, match=r"departs from T_m1 by .* at 2\d s into the "
                                               r"record, \d+(\.\d+)? times what a sensor"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t)
@@ -96,3 +105,18 @@ def test_a_tracked_surge_at_a_fast_gas_drop_is_refused_and_the_flow_explains_it(
                   gases=("rw",)).rmse
     ours = float(np.sqrt(np.mean((result.gas_estimate - rec.gas) ** 2)))
     assert ours <= 1.5 * best  # the issue's bound with the flow
+
+
+def test_the_cli_refuses_it_in_one_line_and_writes_no_output(
+        drop: fi.Recording, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Through the CLI (the refusal needs the reconstruction: --output here): exit 3, one line
+    on stderr, no CSV written."""
+    data = tmp_path / "drive.csv"
+    np.savetxt(data, np.column_stack([drop.t, drop.t1, drop.t2]), delimiter=",",
+               header="t,T_m1,T_m2", comments="", fmt="%.9g")
+    out = tmp_path / "gas.csv"
+    status = main(["characterise", str(data), "--output", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert status == 3
+    assert err.startswith("error: the reconstructed gas departs from T_m1") and "\n" not in err
+    assert not out.exists()
