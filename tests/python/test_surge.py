@@ -77,6 +77,19 @@ def test_the_faster_sensor_is_the_one_with_the_shorter_lag_in_its_scale() -> Non
     assert fast == 1 and ratio <= 1.1  # as in the first test
 
 
+def test_noise_free_still_readings_give_no_division_warning() -> None:
+    """No allowance at all (zero noise, readings standing still, a gas missing on a row):
+    nothing judged there, and no RuntimeWarning (an error under pytest's filterwarnings)."""
+    estimate, gas, _ = _pair()
+    still = (np.full(_ROWS, 500.0), np.full(_ROWS, 500.0))
+    quiet = PairEstimate(status="ok", method="svf", order=1, sample_interval=_TS,
+                         time_constants=((3.0,), (5.0,)), beta=None, noise_std=(0.0, 0.0),
+                         flow_model=estimate.flow_model)
+    gas = np.full(_ROWS, 500.0)
+    gas[10] = np.nan
+    assert surge(quiet, gas, still, None, _TS)[0] == 0.0
+
+
 @pytest.fixture(scope="module")
 def drop() -> fi.Recording:
     """The separate generator's case 82007 (logger_sweep.py 82 8 short), below."""

@@ -246,7 +246,9 @@ def surge(estimate: PairEstimate, gas: np.ndarray, readings: tuple[np.ndarray, n
     slope = scipy.ndimage.maximum_filter1d(np.abs(np.gradient(u, ts)), 2 * reach + 1)
     allowed = lags[fast] * slope + _SURGE_FLOOR * max(estimate.noise_std)
     departure = np.abs(gas - u)
-    ratio = np.where(np.isfinite(departure), departure / allowed, 0.0)
+    # no allowance (noise-free readings standing still, --noise-std 0): no judgement there
+    ratio = np.divide(departure, allowed, out=np.zeros_like(departure),
+                      where=np.isfinite(departure) & (allowed > 0.0))
     row = int(np.argmax(ratio))
     return float(ratio[row]), row, fast, float(departure[row])
 
