@@ -29,6 +29,7 @@ from dualprobe.workflows.checks import (
 )
 from dualprobe.workflows.readings import prepare_readings
 from dualprobe.workflows.refusals import (
+    in_first_scale,
     refuse_departing_gas,
     refuse_implausible,
     refuse_opposed,
@@ -116,8 +117,7 @@ def _residuals(
         return None
     outputs = np.argmax(fit.model.h, axis=1)
     predicted = fit.states[:, outputs] + fit.offset
-    u2 = t2 if static is None else static[0] * t2 + static[1]
-    return t1 - predicted[:, 0], u2 - predicted[:, 1]
+    return t1 - predicted[:, 0], in_first_scale((t1, t2), static, 1) - predicted[:, 1]
 
 
 def _order(order: int | str, hysteresis: bool) -> tuple[int, int | None]:

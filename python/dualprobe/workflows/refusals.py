@@ -38,8 +38,9 @@ from dualprobe.workflows.checks import (
     undetermined_stages,
 )
 
-__all__ = ["LAG_MARGIN", "SURGE_MARGIN", "refuse_departing_gas", "refuse_implausible",
-           "refuse_opposed", "refuse_surging_gas", "refuse_undetermined", "surge"]
+__all__ = ["LAG_MARGIN", "SURGE_MARGIN", "in_first_scale", "refuse_departing_gas",
+           "refuse_implausible", "refuse_opposed", "refuse_surging_gas", "refuse_undetermined",
+           "surge"]
 
 # Two sensors lagging the same gas: T_g - T_fast ~ tau_fast T' and T_slow - T_fast ~ (tau_slow -
 # tau_fast) T', so the gas departs from the fast sensor by about tau_fast / (tau_slow - tau_fast)
@@ -186,13 +187,21 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 "try --order 1 or --flow")
 
 
+def in_first_scale(readings: tuple[np.ndarray, np.ndarray], static: tuple[float, float] | None,
+                   sensor: int) -> np.ndarray:
+    """A sensor's readings in sensor 1's calibration, the reconstruction's (sensor 2 through
+    the affine static map (g, o) when it holds)."""
+    if sensor == 0 or static is None:
+        return readings[sensor]
+    return static[0] * readings[1] + static[1]
+
+
 def refuse_departing_gas(estimate: PairEstimate, gas: np.ndarray,
                           readings: tuple[np.ndarray, np.ndarray],
                           static: tuple[float, float] | None, mu: float) -> None:
     """Refuse (the model misfits) a gas that departs from both sensors by more than
     ``LAG_MARGIN`` times what two lagging sensors allow (module docstring)."""
-    u1 = readings[0]
-    u2 = readings[1] if static is None else static[0] * readings[1] + static[1]
+    u1, u2 = (in_first_scale(readings, static, i) for i in (0, 1))
     ok = np.isfinite(gas)
     if not np.any(ok):
         return
@@ -225,14 +234,6 @@ SURGE_MARGIN = 4.0
 _SURGE_FLOOR = 10.0  # noise standard deviations: a still gas's departure is noise
 
 
-def _reading(readings: tuple[np.ndarray, np.ndarray], static: tuple[float, float] | None,
-             sensor: int) -> np.ndarray:
-    """A sensor's readings in sensor 1's calibration (the reconstruction's)."""
-    if sensor == 0 or static is None:
-        return readings[sensor]
-    return static[0] * readings[1] + static[1]
-
-
 def surge(estimate: PairEstimate, gas: np.ndarray, readings: tuple[np.ndarray, np.ndarray],
           static: tuple[float, float] | None, ts: float) -> tuple[float, int, int, float]:
     """(the largest departure of ``gas`` from the faster sensor over what that sensor lags by,
@@ -241,7 +242,7 @@ def surge(estimate: PairEstimate, gas: np.ndarray, readings: tuple[np.ndarray, n
     scale = float(np.median(psi)) if psi is not None else 1.0
     lags = [sum(taus) / scale for taus in estimate.time_constants]
     fast = int(np.argmin(lags))
-    u = _reading(readings, static, fast)
+    u = in_first_scale(readings, static, fast)
     reach = max(1, round(max(lags) / ts))
     slope = scipy.ndimage.maximum_filter1d(np.abs(np.gradient(u, ts)), 2 * reach + 1)
     allowed = lags[fast] * slope + _SURGE_FLOOR * max(estimate.noise_std)
