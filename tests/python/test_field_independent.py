@@ -377,7 +377,7 @@ def test_an_undetermined_gain_falls_back_to_first_order(monkeypatch: pytest.Monk
     rec = record(1005, duration=900.0, rate=5.0, tau=2.03, ratio=3.71, m=0.64,
                  gains=(0.97, 1.009), noise=0.114, adc=0.0, jitter=0.002, hold=2)
     monkeypatch.setattr(readings_module, "unhold",
-                        lambda x, ts, smooth=False: (np.asarray(x, dtype=float), 1))
+                        lambda x, ts, smooth=False, longest=0.0: (np.asarray(x, dtype=float), 1))
     result = _with_mass_flow(rec)
     assert "order_fallback" in result.estimate.identifiability
     assert result.gas_estimate is not None

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from dualprobe.models.held import held_noise_std, unhold
+from dualprobe.models.held import MAX_REFRESH, SENSOR_REFRESH, held_noise_std, is_held, unhold
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
 
@@ -31,6 +31,22 @@ def test_a_held_reading_is_interpolated_by_a_cubic() -> None:
     assert np.max(np.abs(cubic[inner] - truth[inner])) < 0.0035
     assert np.max(np.abs(linear[inner] - truth[inner])) > 0.05
     np.testing.assert_array_equal(cubic[-5:], held[-5:])  # the last run is held
+
+
+def test_a_sensor_held_longer_than_a_logger_raster_is_still_a_hold() -> None:
+    """A sensor refreshed every 3 s at 1 Hz (a slow sensor's ECU): a sensor's reading lags the
+    gas and so moves on every row, and a regular staircase in it is a hold up to
+    ``SENSOR_REFRESH`` (5 s), where a flow column's is one up to ``MAX_REFRESH`` (2 s) only (a
+    laboratory may step a flow)."""
+    assert MAX_REFRESH < 3.0 <= SENSOR_REFRESH
+    truth = _smooth(6000)[::10]  # 600 rows at 1 Hz
+    held = np.repeat(truth[::3], 3)[:truth.size]
+    assert unhold(held, 1.0)[1] == 1  # a flow's limit: left as it is
+    cubic, refresh = unhold(held, 1.0, smooth=True, longest=SENSOR_REFRESH)
+    assert refresh == 3 and is_held(held, 1.0, SENSOR_REFRESH)
+    np.testing.assert_allclose(cubic[::3], truth[::3], atol=1e-12)
+    slow = np.repeat(truth[::6], 6)[:truth.size]  # 6 s: beyond either
+    assert unhold(slow, 1.0, smooth=True, longest=SENSOR_REFRESH)[1] == 1
 
 
 def test_a_held_readings_noise_is_counted_once_per_refresh() -> None:

@@ -15,7 +15,7 @@ A run of ``MIN_ROWS`` or more exactly equal readings (shorter ones are spikes,
   (12 local robust scales, at least 12 ADC steps) in opposite directions: the reading left the
   record's course and came back (not on a held sensor, whose refresh steps are no such
   evidence); or
-* it is **frozen while the gas moves**: longer than a logger's refresh (``MAX_REFRESH``), and
+* it is **frozen while the gas moves**: longer than a logger's refresh (``SENSOR_REFRESH``), and
   no first-order sensor of up to a third of the record's duration (the slowest the
   characterisation accepts) can have stayed there. A sensor that reads c over the run has
   ``tau (x(t) - c) = int_0^t (gas - x) ds ~ int_0^t (gas - c) ds``, so it stays within a band
@@ -38,7 +38,7 @@ import numpy as np
 from scipy import optimize
 
 from dualprobe.io.errors import InputError
-from dualprobe.models.held import MAX_REFRESH, is_held
+from dualprobe.models.held import SENSOR_REFRESH, is_held
 from dualprobe.models.spikes import MAX_RUN, thresholds
 
 __all__ = ["FROZEN_FLOOR", "FROZEN_STEPS", "MIN_ROWS", "Stuck", "find_stuck", "refuse_stuck"]
@@ -112,13 +112,14 @@ def find_stuck(x: np.ndarray, other: np.ndarray, ts: float) -> list[Stuck]:
         out = x[end] - x[end - 1] if end < x.size else 0.0
         if into * out < 0.0:
             if limits is None:
-                limits = (np.full(x.size, np.inf) if is_held(x, ts) or x.size <= MAX_RUN + 4
+                limits = (np.full(x.size, np.inf)
+                          if is_held(x, ts, SENSOR_REFRESH) or x.size <= MAX_RUN + 4
                           else thresholds(x))
             if min(abs(into), abs(out)) > limits[start - 1]:
                 found.append(Stuck(start, length, float(x[start]), "dropout",
                                    float(min(abs(into), abs(out)))))
                 continue
-        if length * ts <= MAX_REFRESH:
+        if length * ts <= SENSOR_REFRESH:
             continue
         movement = _swing(other[start:end], ts) / tau
         if movement > limit:

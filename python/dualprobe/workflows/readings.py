@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from dualprobe.models.held import held_noise_std, is_held, unhold
+from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, unhold
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
@@ -54,12 +54,12 @@ def prepare_readings(
     spiked."""
     stamps = (np.asarray(time, dtype=float) if time is not None and np.shape(time) == t1.shape
               else np.arange(t1.size) * ts)
-    held = [unhold(x, ts, smooth=True) for x in (t1, t2)]
+    held = [unhold(x, ts, smooth=True, longest=SENSOR_REFRESH) for x in (t1, t2)]
     refuse_stuck([(columns[0], t1, columns[1], t2), (columns[1], t2, columns[0], t1)], ts,
                  stamps)
     values, notes = [], []
     for raw, (x, _), column in zip((t1, t2), held, columns, strict=True):
-        if not is_held(raw, ts):
+        if not is_held(raw, ts, SENSOR_REFRESH):
             # an irregular hold (left to the model check, which names it) is a staircase: its
             # curvature scale is zero between refreshes and each turn looked like a spike
             x, spikes = despike(x)
@@ -71,7 +71,7 @@ def prepare_readings(
     levels = []
     for index, (x, (_, rows), column) in enumerate(zip((t1, t2), held, columns, strict=True)):
         # held_noise_std is estimate_noise_std on a sensor that is not held
-        level = (held_noise_std(x, ts, ORDER_ESTIMATION) if sigma is None
+        level = (held_noise_std(x, ts, ORDER_ESTIMATION, SENSOR_REFRESH) if sigma is None
                  else sigma[index] * math.sqrt(rows))
         levels.append(level)
         if rows > 1:

@@ -14,9 +14,9 @@ sharing a time constant while the model misfits (a common factor, which no pair 
 that departs from both sensors by more than two lagging sensors allow while the model misfits
 (``LAG_MARGIN``), or a reconstruction that predicts a sensor worse than the other sensor's raw
 reading does (the model is worse than no model).
-A tracked schedule (no flow column) is refused, with where, when its reconstruction departs
-from the faster sensor by far more than that sensor lags (``SURGE_MARGIN``): a time constant
-the tracking made up at a fast change of the gas put the gas 447 K off there.
+A reconstruction is refused, with where, when it departs from the faster sensor by far more
+than that sensor lags (``SURGE_MARGIN``): a time constant the tracking made up at a fast change
+of the gas put the gas 447 K off there; a slow sensor held for 3 s by a 1 Hz logger, 332 K.
 An asked-for order 2 whose time constants the data do not determine is refused too.
 """
 
@@ -139,7 +139,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 "determine it; record longer, or with "
                 "larger and faster temperature changes"
                 + (" (or use --order 1)" if len(taus) > 1 else ""))
-    if tracked and gas is not None:
+    if gas is not None:
         refuse_surging_gas(estimate, gas, readings, static, duration, columns)
     mu, statistic = misfit(estimate)
     misfits = math.isfinite(statistic) and statistic > GAP_THRESHOLD
@@ -244,8 +244,12 @@ def surge(estimate: PairEstimate, gas: np.ndarray, readings: tuple[np.ndarray, n
     fast = int(np.argmin(lags))
     u = in_first_scale(readings, static, fast)
     reach = max(1, round(max(lags) / ts))
+    steps = np.abs(np.diff(u, prepend=u[0]))
     slope = scipy.ndimage.maximum_filter1d(np.abs(np.gradient(u, ts)), 2 * reach + 1)
-    allowed = lags[fast] * slope + _SURGE_FLOOR * max(estimate.noise_std)
+    # plus the largest change over one row: a sensor faster than the rows has jumped by
+    # that much between two readings where its time constant times the slope is less
+    step = scipy.ndimage.maximum_filter1d(steps, 2 * reach + 1)
+    allowed = lags[fast] * slope + step + _SURGE_FLOOR * max(estimate.noise_std)
     departure = np.abs(gas - u)
     # no allowance (noise-free readings standing still, --noise-std 0): no judgement there
     ratio = np.divide(departure, allowed, out=np.zeros_like(departure),
@@ -264,12 +268,18 @@ def refuse_surging_gas(estimate: PairEstimate, gas: np.ndarray,
     ratio, row, fast, departure = surge(estimate, gas, readings, static, ts)
     if not ratio > SURGE_MARGIN:
         return
-    psi = estimate.flow_model.psi if estimate.flow_model is not None else None
-    there = (f" (the tracked time constant there {float(np.median(psi) / psi[row]):.3g} times "
-             "its median)" if psi is not None else "")
+    model = estimate.flow_model
+    where = (f"the reconstructed gas departs from {columns[fast]} by {departure:.4g} K at "
+             f"{row * ts:.0f} s into the record, {ratio:.3g} times what a sensor lagging with "
+             "its time constants allows")
+    if model is not None and model.kind == "tracked":
+        raise EstimationError(
+            f"{where} (the tracked time constant there "
+            f"{float(np.median(model.psi) / model.psi[row]):.3g} times its median): the "
+            "tracking absorbed something the model lacks there, not a time constant; give "
+            "--flow, trim the record (--window), or --track off for constant time constants "
+            "(their misfit reported)")
     raise EstimationError(
-        f"the reconstructed gas departs from {columns[fast]} by {departure:.4g} K at "
-        f"{row * ts:.0f} s into the record, {ratio:.3g} times what a sensor lagging with its "
-        f"time constants allows{there}: the tracking absorbed something the model lacks "
-        "there, not a time constant; give --flow, trim the record (--window), or --track off "
-        "for constant time constants (their misfit reported)")
+        f"{where}: the model lacks something the readings show there (a channel held, "
+        "stuck or resampled by its logger, a sensor of higher order, a delay); check both "
+        "channels there, trim the record (--window), or run dualprobe diagnose")
