@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from dualprobe.models.jitter import row_noise_scale
 from dualprobe.reconstruction.checks import as_sigma, as_taus, check_signals, effective_sigma
 from dualprobe.reconstruction.stages import resolvable_stages, unresolved_lag
 from dualprobe.reconstruction.statespace import (
@@ -64,6 +65,7 @@ class SmootherFit:
     steps_at_samples: np.ndarray
     gas_variance: np.ndarray  # posterior variance of the gas at each sample (Laplace, at the MAP)
     increments: str = "student_t"  # or "gaussian"
+    noise_scale: np.ndarray | None = None  # (N, 2) rows' noise variance over sigma^2 (jitter)
 
     @property
     def gas(self) -> np.ndarray:
@@ -156,7 +158,7 @@ def _steps_at_samples(
 
 def _gaussian_fit(
     model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str,
-    offset: float,
+    offset: float, scale: np.ndarray | None = None,
 ) -> SmootherFit:
     """The Gaussian-increment smoother (the RTS smoother's mean): each gas model at its
     maximum-likelihood intensity, the better marginal likelihood (exact) wins."""
@@ -164,7 +166,7 @@ def _gaussian_fit(
     nll_by_gas = {}
     for name in (("rw", "irw") if gas == "auto" else (gas,)):
         model = model_for(name)
-        system = Trajectory(model, yc, sigma)
+        system = Trajectory(model, yc, sigma, scale)
         modes = np.zeros(yc.shape[0] - 1, dtype=np.intp)
         for _ in range(_MAX_MODE_PASSES if model.hysteretic else 1):
             log_q = gaussian_log_q(system, modes)
@@ -186,7 +188,7 @@ def _gaussian_fit(
         nll=nll, sigma=(float(sigma[0]), float(sigma[1])), nll_by_gas=nll_by_gas,
         iterations=0, steps_at_samples=np.zeros((0, 3), dtype=np.intp),
         gas_variance=system.posterior_variance(log_q, ones, modes)[:, 0],
-        increments="gaussian",
+        increments="gaussian", noise_scale=scale,
     )
 
 
@@ -277,21 +279,26 @@ def fit_smoother(
 
     if increments == "auto":
         increments = "gaussian" if schedule is not None else "student_t"
+    # a jittered clock: each row's noise grows with the sensor's slope (models/jitter.py),
+    # and a gas fitted with one noise level follows those errors where the sensors move
+    scale = row_noise_scale(y, float(ts))
     if yc.shape[0] <= TUNE_ROWS:
-        return _fit(models(), yc, sigma, gas, offset, increments)
+        return _fit(models(), yc, sigma, gas, offset, increments, scale)
     # recording scale: tune on a block, apply to the whole (cost linear in the length)
     block = _tuning_block(yc, TUNE_ROWS)
-    tuned = _fit(models(block), yc[block], sigma, gas, offset, increments)
-    return _apply(tuned, models()(tuned.model.gas), yc, offset)
+    tuned = _fit(models(block), yc[block], sigma, gas, offset, increments,
+                 None if scale is None else scale[block])
+    return _apply(tuned, models()(tuned.model.gas), yc, offset, scale)
 
 
 def _fit(model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str,
-         offset: float, increments: str) -> SmootherFit:
-    """The whole fit (gas model, intensity, weights, noise raises) on ``yc``."""
+         offset: float, increments: str, scale: np.ndarray | None = None) -> SmootherFit:
+    """The whole fit (gas model, intensity, weights, noise raises) on ``yc``; ``scale``: the
+    rows' noise variances over sigma^2."""
     if increments == "gaussian":
-        return _gaussian_fit(model_for, yc, sigma, gas, offset)
+        return _gaussian_fit(model_for, yc, sigma, gas, offset, scale)
     for _ in range(_MAX_NOISE_RAISES + 1):
-        fits = fit_gas_models(model_for, yc, sigma, gas)
+        fits = fit_gas_models(model_for, yc, sigma, gas, scale)
         chosen = min(fits, key=lambda f: f.best[0])
         nll, log_q, lam, modes, x = chosen.best
         if not math.isfinite(nll):
@@ -315,7 +322,7 @@ def _fit(model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarra
         nll_by_gas={f.model.gas: f.best[0] for f in fits},
         iterations=chosen.rounds,
         steps_at_samples=_steps_at_samples(chosen.model, yc, x, lam, modes, sigma),
-        gas_variance=variance[:, 0],
+        gas_variance=variance[:, 0], noise_scale=scale,
     )
 
 
@@ -329,7 +336,8 @@ def rescheduled_gas(fit: SmootherFit, y: np.ndarray, schedule: np.ndarray) -> np
     moved = pair_model(model.taus_heat[0], model.taus_heat[1], model.ts, gas=model.gas,
                        taus1_cool=cool[0], taus2_cool=cool[1],
                        schedule=0.5 * (row[1:] + row[:-1]))
-    system = Trajectory(moved, y - fit.offset, np.asarray(fit.sigma, dtype=float))
+    system = Trajectory(moved, y - fit.offset, np.asarray(fit.sigma, dtype=float),
+                        fit.noise_scale)
     nll, x, _ = system.evaluate(math.log(fit.q), fit.weights, fit.modes)
     if not math.isfinite(nll):
         raise ValueError("reconstruct_pair: the smoother failed on the moved schedule")
@@ -348,12 +356,13 @@ def _tuning_block(y: np.ndarray, rows: int) -> slice:
     return slice(start, start + rows)
 
 
-def _apply(tuned: SmootherFit, model: PairModel, yc: np.ndarray, offset: float) -> SmootherFit:
+def _apply(tuned: SmootherFit, model: PairModel, yc: np.ndarray, offset: float,
+           scale: np.ndarray | None = None) -> SmootherFit:
     """The tuned smoother on the whole record: its gas model, intensity and noise levels
     fixed; the Student-t weights (and hysteresis modes) re-found by iteratively reweighted
     solves, one banded solve each, until the trajectory settles far below the noise."""
     sigma = np.asarray(tuned.sigma, dtype=float)
-    system = Trajectory(model, yc, sigma)
+    system = Trajectory(model, yc, sigma, scale)
     log_q = math.log(tuned.q)
     modes = initial_modes(model, yc)
     lam = np.ones(yc.shape[0] - 1)
@@ -380,5 +389,5 @@ def _apply(tuned: SmootherFit, model: PairModel, yc: np.ndarray, offset: float) 
         sigma=tuned.sigma, nll_by_gas=tuned.nll_by_gas, iterations=tuned.iterations + rounds,
         steps_at_samples=steps,
         gas_variance=system.posterior_variance(log_q, lam, modes)[:, 0],
-        increments=tuned.increments,
+        increments=tuned.increments, noise_scale=scale,
     )

@@ -47,17 +47,27 @@ class Trajectory:
     the Hessian is block-tridiagonal with bandwidth 2n - 1.
     """
 
-    def __init__(self, model: PairModel, y: np.ndarray, sigma: np.ndarray) -> None:
+    def __init__(self, model: PairModel, y: np.ndarray, sigma: np.ndarray,
+                 scale: np.ndarray | None = None) -> None:
+        """``scale`` (N, 2): each row's noise variance over ``sigma**2`` (a jittered clock:
+        :func:`dualprobe.models.jitter.row_noise_scale`); None: every row alike."""
         self.model = model
         self.y = y
         self.n = model.n
         self.samples = y.shape[0]
-        self.r_inv = np.diag(1.0 / sigma**2)
-        self.log_det_2pi_r = float(np.sum(np.log(2.0 * np.pi * sigma**2)))
         self.sigma = sigma
-        self.hrh = model.h.T @ self.r_inv @ model.h
+        # each row's noise variance: (2,) when every row is alike, else (N, 2)
+        self.variance = sigma**2 if scale is None else sigma**2 * scale
         self.outputs = np.argmax(model.h, axis=1)  # the state each sensor measures
-        self.rhs = (y @ (self.r_inv @ model.h)).ravel()
+        if scale is None:
+            r_inv = np.diag(1.0 / sigma**2)
+            self.log_det_r = self.samples * float(np.sum(np.log(2.0 * np.pi * sigma**2)))
+            self.hrh = model.h.T @ r_inv @ model.h  # H^T R^-1 H (n, n)
+            self.rhs = (y @ (r_inv @ model.h)).ravel()
+        else:
+            self.log_det_r = float(np.sum(np.log(2.0 * np.pi * self.variance)))
+            self.hrh = np.einsum("ki,ij,il->kjl", 1.0 / self.variance, model.h, model.h)
+            self.rhs = ((y / self.variance) @ model.h).ravel()
         self.upper = 2 * self.n - 1
 
     def _system(
@@ -88,10 +98,11 @@ class Trajectory:
         ab = np.zeros((u + 1, big_n * n), order="F")  # LAPACK layout: no copy in dpbtrf
         for p in range(n):
             for c in range(p, n):
+                hrh = self.hrh[p, c] if self.hrh.ndim == 2 else self.hrh[:, p, c]
                 if single:
-                    row = self.hrh[p, c] + lam_next * pwp_k[p, c] + lam_prev * w_inv_k[p, c]
+                    row = hrh + lam_next * pwp_k[p, c] + lam_prev * w_inv_k[p, c]
                 else:
-                    row = np.full(big_n, self.hrh[p, c])
+                    row = np.array(np.broadcast_to(hrh, (big_n,)))
                     row[:-1] += lam * pwp_k[c, p]
                     row[1:] += lam * w_inv_k[c, p]
                 ab[u + p - c, c::n] = row
@@ -129,8 +140,8 @@ class Trajectory:
             log_det_q = float(np.sum(log_det_qb[slices]))
         prior = float(np.dot(lam, m2)) + log_det_q - n * float(np.sum(np.log(lam)))
         nll = 0.5 * (
-            float(np.sum(resid * resid / self.sigma**2))
-            + big_n * self.log_det_2pi_r
+            float(np.sum(resid * resid / self.variance))
+            + self.log_det_r
             + prior
             + 2.0 * float(np.sum(np.log(chol[-1])))
             - big_n * n * math.log(2.0 * math.pi)
@@ -152,8 +163,8 @@ class Trajectory:
             return math.inf, x, x
         var = self.posterior_variance(log_q, lam, modes)
         resid = self.y - x[:, self.outputs]
-        chi2 = float(np.sum(resid * resid / self.sigma**2))
-        dof = float(np.sum(var[:, self.outputs] / self.sigma**2))
+        chi2 = float(np.sum(resid * resid / self.variance))
+        dof = float(np.sum(var[:, self.outputs] / self.variance))
         return chi2 + 2.0 * dof, x, var
 
     def posterior_variance(self, log_q: float, lam: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -293,10 +304,11 @@ class GasFit:
         y: np.ndarray,
         sigma: np.ndarray,
         initial_weights: np.ndarray | None = None,
+        scale: np.ndarray | None = None,
     ) -> None:
         self.model = model
         self.objective = _Objective(
-            Trajectory(model, y, sigma), initial_modes(model, y), initial_weights
+            Trajectory(model, y, sigma, scale), initial_modes(model, y), initial_weights
         )
         self.tol = 1e-2 * float(np.min(sigma))  # settled: changes far below the noise
         lowest, start, highest = _log_q_range(model, y, sigma)
@@ -362,15 +374,17 @@ class GasFit:
 
 
 def fit_gas_models(
-    model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str
+    model_for: Callable[[str], PairModel], yc: np.ndarray, sigma: np.ndarray, gas: str,
+    scale: np.ndarray | None = None,
 ) -> list[GasFit]:
     """rw first: it places the steps as single increments; irw starts from its weights (from
-    all-equal weights irw smears a step into a ramp and the reweighting keeps it)."""
-    fits = [GasFit(model_for("rw"), yc, sigma)]
+    all-equal weights irw smears a step into a ramp and the reweighting keeps it). ``scale``:
+    the rows' noise variances over sigma^2 (:class:`Trajectory`)."""
+    fits = [GasFit(model_for("rw"), yc, sigma, scale=scale)]
     fits[0].iterate(_MAX_ROUNDS)
     if gas != "rw":
         jumps = np.minimum(fits[0].best[2], 1.0)
-        irw = GasFit(model_for("irw"), yc, sigma, initial_weights=jumps)
+        irw = GasFit(model_for("irw"), yc, sigma, initial_weights=jumps, scale=scale)
         irw.iterate(_MAX_ROUNDS, rival=fits[0].best[0] if gas == "auto" else None)
         fits = [*fits, irw] if gas == "auto" else [irw]
     return fits

@@ -1,7 +1,7 @@
 """The sensors' readings as the estimation needs them: a stuck channel refused by name
 (:mod:`dualprobe.models.stuck`), held readings interpolated between their refreshes
-(:mod:`dualprobe.models.held`), spikes replaced (:mod:`dualprobe.models.spikes`), each said in
-a note."""
+(:mod:`dualprobe.models.held`), spikes replaced (:mod:`dualprobe.models.spikes`), a jittered
+sampling clock named (:mod:`dualprobe.models.jitter`), each said in a note."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import math
 import numpy as np
 
 from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, unhold
+from dualprobe.models.jitter import equivalent_noise_std, jitter_variance
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
@@ -66,13 +67,25 @@ def prepare_readings(
             if len(spikes):
                 notes.append(_spike_note(column, spikes, stamps))
         values.append(x)
-    if all(rows == 1 for _, rows in held):
+    jitters = [jitter_variance(x, ts) for x in values]
+    for j2, column in zip(jitters, columns, strict=True):
+        if j2 > 0.0:
+            notes.append(f"{column}: its noise grows with its slope, as readings taken about "
+                         f"{1e3 * math.sqrt(j2):.2g} ms early or late and logged at the nominal "
+                         "instant make it (a jittered sampling clock): judged by its mean over "
+                         "the record, and each row's noise counted as its slope makes it in the "
+                         "reconstruction")
+    if all(rows == 1 for _, rows in held) and not any(jitters):
         return values[0], values[1], sigma, tuple(notes)  # noise: once, by the estimation
     levels = []
     for index, (x, (_, rows), column) in enumerate(zip((t1, t2), held, columns, strict=True)):
         # held_noise_std is estimate_noise_std on a sensor that is not held
         level = (held_noise_std(x, ts, ORDER_ESTIMATION, SENSOR_REFRESH) if sigma is None
                  else sigma[index] * math.sqrt(rows))
+        if jitters[index] > 0.0 and sigma is None:
+            # the white level a misfit over all rows is judged by (the reconstruction spreads
+            # it over the rows by their slopes: models/jitter.py)
+            level = equivalent_noise_std(level, values[index], ts, jitters[index])
         levels.append(level)
         if rows > 1:
             notes.append(f"{column} holds its readings for {rows} rows per refresh (a logger "
