@@ -36,13 +36,18 @@ def test_the_clock_jitter_is_measured_from_the_readings(rate: float, jitter: flo
         assert j == pytest.approx(jitter, rel=0.15)
 
 
-@pytest.mark.parametrize("rate", [1.0, 2.0, 10.0, 25.0])
-def test_no_jitter_is_found_where_there_is_none(rate: float) -> None:
+@pytest.mark.parametrize(("rate", "jitter"), [(1.0, 0.0), (2.0, 0.0), (10.0, 0.0), (25.0, 0.0),
+                                             (2.0, 0.01)])
+def test_no_jitter_is_found_where_there_is_none_or_it_cannot_be_told(rate: float,
+                                                                      jitter: float) -> None:
     """Without jitter: nothing at 10-25 Hz (the differences are noise on every row) nor at
     1-2 Hz, where the drive cycle's own motion shows in the differences, most where the sensor
-    moves fastest (the steepest class 2.5 times as variable as the stillest at 2 Hz), and the
-    orders disagree (orders 3 and 6 by 19-20 %)."""
-    rec = fi.record(83003, rate=rate, jitter=0.0, duration=1200.0, **_PAIR)
+    moves fastest (the steepest class 2.5 times as variable as the stillest at 2 Hz), the
+    orders disagree (orders 3 and 6 by 19-20 %) and the steepest rows' neighbouring
+    differences correlate at -0.2 to -0.55 where white errors give -0.8. With 10 ms at 2 Hz
+    the jitter is hidden in that motion (15 ms was found before the correlation test): none
+    is claimed."""
+    rec = fi.record(83003, rate=rate, jitter=jitter, duration=1200.0, **_PAIR)
     for x in (rec.t1, rec.t2):
         assert jitter_variance(x, rec.ts) == 0.0
     assert row_noise_scale(np.column_stack([rec.t1, rec.t2]), rec.ts) is None
