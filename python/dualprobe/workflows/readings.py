@@ -82,9 +82,10 @@ def prepare_readings(
         # held_noise_std is estimate_noise_std on a sensor that is not held
         level = (held_noise_std(x, ts, ORDER_ESTIMATION, SENSOR_REFRESH) if sigma is None
                  else sigma[index] * math.sqrt(rows))
-        if jitters[index] > 0.0 and sigma is None:
+        if jitters[index] > 0.0:
             # the white level a misfit over all rows is judged by (the reconstruction spreads
-            # it over the rows by their slopes: models/jitter.py)
+            # it over the rows by their slopes: models/jitter.py); a given level is the
+            # sensor's own noise, and the jitter adds to it
             level = equivalent_noise_std(level, values[index], ts, jitters[index])
         levels.append(level)
         if rows > 1:
