@@ -57,7 +57,8 @@ def jitter_variance(x: np.ndarray, ts: float) -> float:
     v = np.asarray(x, dtype=float)
     if v.size < _MIN_ROWS or not np.all(np.isfinite(v)):
         return 0.0
-    d2 = np.diff(v, n=_ORDER) ** 2 / _GAIN
+    d = np.diff(v, n=_ORDER)
+    d2 = d * d / _GAIN
     speed = slope(v, ts)[2:-2]  # at each difference's centre
     classes = np.array_split(np.argsort(np.abs(speed)), _BINS)
     variance = np.array([np.median(d2[c]) / _MEDIAN_CHI2 for c in classes])
@@ -69,8 +70,7 @@ def jitter_variance(x: np.ndarray, ts: float) -> float:
     low, high = estimate_noise_std(v, 3), estimate_noise_std(v, 6)
     if not (low > 0.0 and abs(high / low - 1.0) <= _WHITE):
         return 0.0
-    steep = classes[-1][classes[-1] < d2.size - 1]
-    d = np.diff(v, n=_ORDER)
+    steep = classes[-1][classes[-1] < d.size - 1]
     if not (steep.size > 2 and np.corrcoef(d[steep], d[steep + 1])[0, 1] < _WHITE_CORRELATION):
         return 0.0
     # least squares of the classes' excess variance on their excess squared slope, through
