@@ -14,17 +14,19 @@ import numpy as np
 from dualprobe.estimation.confidence import confidence
 from dualprobe.estimation.difference import characterise_difference
 from dualprobe.estimation.engine import STATIC_MODELS
-from dualprobe.estimation.field import FlowModel
-from dualprobe.estimation.flow import check_flow, evidence
-from dualprobe.estimation.flow_timing import timed_flow_law
+from dualprobe.estimation.field import FlowModel, RunSvf
+from dualprobe.estimation.flow import FlowSignal, check_flow, evidence
+from dualprobe.estimation.flow_timing import shifted, timed_flow_law
+from dualprobe.estimation.relevel import relevel
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.estimation.svf import characterise_svf
 from dualprobe.estimation.without_flow import track_without_flow
 from dualprobe.io import InputError
+from dualprobe.models.held import unhold
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
-__all__ = ["METHODS", "TRACKING", "characterise_pair"]
+__all__ = ["METHODS", "TRACKING", "characterise_pair", "relevelled"]
 
 
 METHODS = ("auto", "svf", "ls", "tls", "gtls")
@@ -177,10 +179,8 @@ def characterise_pair(
             signal = check_flow(flow, flow_column, a.size)
         except ValueError as exc:
             raise InputError(str(exc)) from None
-    def run(psi: np.ndarray | None, fit_order: int = order) -> PairEstimate:
-        return characterise_svf(a, b, ts, fit_order, hysteresis, sigma, source,
-                                filter_time_constant, static_model, schedule=psi)
-
+    run = _runner(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
+                  static_model)
     base = run(None)
     model = None
     estimate = base
@@ -193,10 +193,7 @@ def characterise_pair(
             return base
         if signal is not None:
             estimate, model, signal = timed_flow_law(a, b, first, signal, run)
-            if model.level_reference is not None:
-                # the exponent's uncertainty with the level term: its per-row factor as fitted
-                factor = model.psi / signal.psi(model.exponent)
-                signal = dataclasses.replace(signal, factor=factor)
+            signal = _with_level(model, signal)
         elif base.status != "ok" or _misfits(base):
             estimate, model = track_without_flow(a, b, first, run)
         if model is not None and model.kind == "constant":
@@ -213,3 +210,54 @@ def characterise_pair(
     conf = confidence(a, b, estimate, model or FlowModel("constant", np.ones(a.size)), signal) \
         if uncertainty else None
     return dataclasses.replace(estimate, flow_model=model, confidence=conf)
+
+
+def _runner(a: np.ndarray, b: np.ndarray, ts: float, order: int, hysteresis: bool,
+            sigma: tuple[float, float], source: str, filter_time_constant: float | None,
+            static_model: str) -> RunSvf:
+    """The SVF characterisation on a schedule psi (None: constant), at ``order`` or
+    ``fit_order``, with these settings."""
+    def run(psi: np.ndarray | None, fit_order: int = order) -> PairEstimate:
+        return characterise_svf(a, b, ts, fit_order, hysteresis, sigma, source,
+                                filter_time_constant, static_model, schedule=psi)
+
+    return run
+
+
+def _with_level(model: FlowModel, signal: FlowSignal) -> FlowSignal:
+    """``signal`` with the level term's per-row factor as fitted (the exponent's uncertainty
+    is then that of the law with its level term), where the law has one."""
+    if model.level_reference is None:
+        return signal
+    return dataclasses.replace(signal, factor=model.psi / signal.psi(model.exponent))
+
+
+def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate,
+               gas: np.ndarray, *, flow: np.ndarray, flow_column: str | None,
+               noise_std: float | Sequence[float] | None = None,
+               uncertainty: bool = False) -> PairEstimate | None:
+    """``estimate`` (from :func:`characterise_pair` with ``flow``, the same signals and noise
+    levels, the default filter and static settings) with its flow law's level term searched
+    again with ``gas`` (its reconstruction, in sensor 1's unit) as the level
+    (:func:`dualprobe.estimation.relevel.relevel`), or None where that is not better. The flow
+    is taken as the law saw it: held values interpolated, shifted by the law's delay."""
+    model = estimate.flow_model
+    if model is None or model.level_reference is None or estimate.method not in ("auto", "svf"):
+        return None
+    a, b, ts = _check_inputs(t1, t2, ts, estimate.method, estimate.order, False)
+    sigma, source = _noise_levels(a, b, noise_std)
+    try:
+        signal = check_flow(flow, flow_column, a.size)
+    except ValueError as exc:
+        raise InputError(str(exc)) from None
+    values, refresh = unhold(signal.values, ts)
+    if refresh > 1:
+        signal = dataclasses.replace(signal, values=values)
+    signal = shifted(signal, model.delay, ts)
+    run = _runner(a, b, ts, estimate.order, False, sigma, source, None, "auto")
+    again = relevel(a, b, estimate, signal, run, gas)
+    if again is None or again.flow_model is None:
+        return None
+    conf = (confidence(a, b, again, again.flow_model, _with_level(again.flow_model, signal))
+            if uncertainty else None)
+    return dataclasses.replace(again, confidence=conf)

@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from dualprobe.estimation import METHODS, PairEstimate, characterise_pair
+from dualprobe.estimation import METHODS, PairEstimate, characterise_pair, relevelled
 from dualprobe.estimation.reuse import Kept
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
@@ -27,7 +27,7 @@ from dualprobe.workflows.checks import (
     undetermined_stages,
     unsettled_stages,
 )
-from dualprobe.workflows.readings import prepare_readings
+from dualprobe.workflows.readings import check_excitation, parse_noise_std, prepare_readings
 from dualprobe.workflows.refusals import (
     in_first_scale,
     refuse_departing_gas,
@@ -49,35 +49,8 @@ __all__ = [
 ORDERS = ("auto", 1, 2)
 
 
-def _parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
-    if noise_std is None:
-        return None
-    values = (
-        [float(noise_std)] * 2
-        if isinstance(noise_std, (int, float, np.floating))
-        else [float(v) for v in noise_std]
-    )
-    if len(values) == 1:
-        values *= 2
-    if len(values) != 2:
-        raise InputError(f"noise std: expected one or two values, got {len(values)}")
-    for value in values:
-        if not math.isfinite(value) or value < 0.0:
-            raise InputError(f"noise std: must be finite and >= 0, got {value!r}")
-    return values[0], values[1]
-
-
 def _format_taus(taus: Sequence[Sequence[float]]) -> str:
     return " and ".join("(" + ", ".join(f"{tau:.5g}" for tau in sensor) + ") s" for sensor in taus)
-
-
-def _check_excitation(t1: np.ndarray, t2: np.ndarray, columns: tuple[str, str]) -> None:
-    for column, values in zip(columns, (t1, t2), strict=True):
-        if np.ptp(values) == 0.0:
-            raise EstimationError(
-                f"no excitation: column {column!r} is constant ({values[0]:.6g}); the time "
-                "constants need a recording in which the temperature changes"
-            )
 
 
 def _relative_static(estimate: PairEstimate) -> tuple[float, float] | None:
@@ -186,9 +159,9 @@ def characterise_arrays(
         if reference.shape != t1.shape:
             raise InputError("reference must have the same length as the sensor signals")
     readings = (t1, t2)
-    t1, t2, sigma, held = prepare_readings(t1, t2, ts, _parse_noise_std(noise_std), columns,
+    t1, t2, sigma, held = prepare_readings(t1, t2, ts, parse_noise_std(noise_std), columns,
                                            time)
-    _check_excitation(t1, t2, columns)
+    check_excitation(t1, t2, columns)
     svf = method in ("auto", "svf")
     # a first-order fallback repeats the order-independent steps on the same readings (the
     # no-flow tracking, static search, MAPs of psi): kept from the first try (estimation.reuse)
@@ -267,6 +240,11 @@ def characterise_arrays(
     residuals = None
     if reconstruction is not None:
         result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
+        again = (_relevelled(t1, t2, ts, estimate, result.gas, flow, flow_column, sigma,
+                             uncertainty) if flow is not None and svf else None)
+        if again is not None:  # the level term found again on the gas (estimation/relevel.py)
+            estimate, static = again, _relative_static(again)
+            result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
         gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
         doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, gas, gas_std)
         if doubt is not None and gas_std is not None:
@@ -332,6 +310,25 @@ def _rival_doubt(
             residual_ratios(residuals, _noise_levels(rival, static))) > MISFIT_LIMIT:
         return None
     return undetermined(gas, other.gas, gas_std, ts)
+
+
+def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate,
+                gas: np.ndarray, flow: np.ndarray, column: str | None,
+                sigma: tuple[float, float] | None, uncertainty: bool) -> PairEstimate | None:
+    """``estimate`` with its level term searched again on the reconstructed ``gas``, or None
+    (:func:`dualprobe.estimation.relevelled`); the order notes this workflow added are kept,
+    the new fit's own identifiability beside them."""
+    again = relevelled(t1, t2, ts, estimate, gas, flow=flow, flow_column=column,
+                       noise_std=sigma, uncertainty=uncertainty)
+    if again is None:
+        return None
+    ident = dict(again.identifiability)
+    for key in ("order_fallback", "order_note"):
+        if key in estimate.identifiability:
+            ident[key] = estimate.identifiability[key]
+    if "message" not in estimate.identifiability:
+        ident.pop("message", None)
+    return replace(again, identifiability=ident)
 
 
 def _noise_levels(estimate: PairEstimate, static: tuple[float, float] | None

@@ -6,16 +6,18 @@ sampling clock named (:mod:`dualprobe.models.jitter`), each said in a note."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
+from dualprobe.io import EstimationError, InputError
 from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, unhold
 from dualprobe.models.jitter import equivalent_noise_std, jitter_variance
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
 
-__all__ = ["prepare_readings"]
+__all__ = ["check_excitation", "parse_noise_std", "prepare_readings"]
 
 _LISTED = 3  # spikes named in a note
 
@@ -94,3 +96,32 @@ def prepare_readings(
                          f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
                          f"per refresh ({level:.3g} K per row in the noise std)")
     return values[0], values[1], (levels[0], levels[1]), tuple(notes)
+
+
+def parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
+    """A --noise-std argument: one value for both sensors or one each, finite and >= 0."""
+    if noise_std is None:
+        return None
+    values = (
+        [float(noise_std)] * 2
+        if isinstance(noise_std, (int, float, np.floating))
+        else [float(v) for v in noise_std]
+    )
+    if len(values) == 1:
+        values *= 2
+    if len(values) != 2:
+        raise InputError(f"noise std: expected one or two values, got {len(values)}")
+    for value in values:
+        if not math.isfinite(value) or value < 0.0:
+            raise InputError(f"noise std: must be finite and >= 0, got {value!r}")
+    return values[0], values[1]
+
+
+def check_excitation(t1: np.ndarray, t2: np.ndarray, columns: tuple[str, str]) -> None:
+    """A constant column is refused: nothing in it can determine a time constant."""
+    for column, values in zip(columns, (t1, t2), strict=True):
+        if np.ptp(values) == 0.0:
+            raise EstimationError(
+                f"no excitation: column {column!r} is constant ({values[0]:.6g}); the time "
+                "constants need a recording in which the temperature changes"
+            )
