@@ -43,7 +43,7 @@ from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.models.held import unhold
 from dualprobe.models.shift import DELAY_RANGE, DELAY_TOLERANCE, delay_profile, later
 
-__all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law"]
+__all__ = ["DELAY_RANGE", "delay_profile", "shifted", "timed_flow_law", "unheld"]
 
 
 def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
@@ -52,6 +52,13 @@ def shifted(signal: FlowSignal, delay: float, ts: float) -> FlowSignal:
     if delay == 0.0:
         return signal
     return dataclasses.replace(signal, values=later(signal.values, delay, ts))
+
+
+def unheld(signal: FlowSignal, ts: float) -> tuple[FlowSignal, int]:
+    """The flow with held values interpolated between their refreshes (:func:`unhold`), and
+    the rows per refresh (1: not held)."""
+    values, refresh = unhold(signal.values, ts)
+    return (dataclasses.replace(signal, values=values) if refresh > 1 else signal), refresh
 
 
 def timed_flow_law(
@@ -66,9 +73,7 @@ def timed_flow_law(
     flow replaces the one before when it fits better. Returns the estimate, the model (its
     ``delay``) and the flow signal the model's psi is a function of."""
     ts = fit_of(base).ts
-    values, refresh = unhold(signal.values, ts)
-    if refresh > 1:
-        signal = dataclasses.replace(signal, values=values)
+    signal, refresh = unheld(signal, ts)
     estimate, model = flow_law(t1, t2, base, signal, run)
     m = model.evidence.get("exponent_first", math.nan)  # the first-order power law's
     like = fit_of(base)

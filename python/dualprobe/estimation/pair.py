@@ -16,14 +16,13 @@ from dualprobe.estimation.difference import characterise_difference
 from dualprobe.estimation.engine import STATIC_MODELS
 from dualprobe.estimation.field import FlowModel, RunSvf
 from dualprobe.estimation.flow import FlowSignal, check_flow, evidence
-from dualprobe.estimation.flow_timing import shifted, timed_flow_law
+from dualprobe.estimation.flow_timing import shifted, timed_flow_law, unheld
 from dualprobe.estimation.relevel import relevel
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.estimation.svf import characterise_svf
 from dualprobe.estimation.without_flow import track_without_flow
 from dualprobe.io import InputError
-from dualprobe.models.held import unhold
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
 __all__ = ["METHODS", "TRACKING", "characterise_pair", "relevelled"]
@@ -250,10 +249,7 @@ def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate
         signal = check_flow(flow, flow_column, a.size)
     except ValueError as exc:
         raise InputError(str(exc)) from None
-    values, refresh = unhold(signal.values, ts)
-    if refresh > 1:
-        signal = dataclasses.replace(signal, values=values)
-    signal = shifted(signal, model.delay, ts)
+    signal = shifted(unheld(signal, ts)[0], model.delay, ts)
     run = _runner(a, b, ts, estimate.order, False, sigma, source, None, "auto")
     again = relevel(a, b, estimate, signal, run, gas)
     if again is None or again.flow_model is None:

@@ -320,8 +320,9 @@ def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimat
     the new fit's own identifiability beside them."""
     again = relevelled(t1, t2, ts, estimate, gas, flow=flow, flow_column=column,
                        noise_std=sigma, uncertainty=uncertainty)
-    if again is None:
-        return None
+    static = _relative_static(again) if again is not None else None
+    if again is None or (static is not None and not static[0] > 0.0):
+        return None  # (a sign-blind gain that turned is no better fit: refuse_opposed)
     ident = dict(again.identifiability)
     for key in ("order_fallback", "order_note"):
         if key in estimate.identifiability:
