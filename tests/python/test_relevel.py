@@ -15,9 +15,14 @@ from test_field_independent import _oracle_rmse, _rmse, _tau_errors, _with_mass_
 # 0.64), where the level from sensor 1's smoothed inverse left the law 2.02 / 2.76 times the
 # noise (flagged "does not explain the data" beside a gas at 1.06x / 1.03x the oracle) with m
 # 0.694 / 0.669 and per-row time constants 0.4 % / 0.3 % RMS off.
+# And a pair with a 0.48 s sheath on the slow sensor (m 0.63), whose law fitted at 1.17 times
+# the noise with m 0.663: with the reconstructed gas 0.96 and m 0.628 (an evidence of 4.7
+# only, below the threshold a structural choice needs: the level is no added structure).
 STEEP = [
     (9208, {"tau": 5.27, "ratio": 2.92, "m": 0.66}, (1.0, 1.0)),
     (9108, {"tau": 6.24, "ratio": 3.16, "m": 0.64, "gains": (1.018, 1.005)}, (1.018, 1.005)),
+    (9101, {"tau": 5.87, "ratio": 2.38, "m": 0.63, "sheaths": (0.0, 0.48),
+            "gains": (1.018, 0.974)}, (1.018, 0.974)),
 ]
 
 
@@ -29,13 +34,13 @@ def test_the_reconstructed_gas_is_the_level_term_s_level(seed: int, kw: dict[str
     model = result.estimate.flow_model
     assert model is not None and model.kind == "power_law" and model.level_reference is not None
     assert model.evidence.get("level_from_reconstruction") == 1.0
-    # measured: m 0.660 / 0.637, misfit 1.09 / 1.03 (the true gas as the level: 1.06 / 1.03);
-    # 0.01 is a third of the error the smoothed level left
+    # measured: m 0.660 / 0.637 / 0.628, misfit 1.09 / 1.03 / 0.96 (the true gas as the level:
+    # 1.06 / 1.03 / 0.96); 0.01 is a third of the error the smoothed level left
     assert abs(model.exponent - kw["m"]) < 0.01
-    # measured 0.16 % / 0.16 % RMS; a third below what the smoothed level left
+    # measured 0.16 % / 0.16 % / 0.2 % RMS; below the 0.3-0.4 % the smoothed level left
     assert max(_tau_errors(result, rec)) < 0.003
     assert result.gas_estimate is not None
-    # measured 1.03x / 1.03x the oracle; the issue's bound is 1.5x
+    # measured 1.03x / 1.03x / 1.02x the oracle; the issue's bound is 1.5x
     assert _rmse(result.gas_estimate, rec.gas) <= 1.1 * _oracle_rmse(rec, gains)
     assert result.model_check is not None and result.model_check.adequate
 
