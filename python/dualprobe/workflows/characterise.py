@@ -238,12 +238,19 @@ def characterise_arrays(
     resolved: Bandwidth | None = None
     rmse: float | None = None
     residuals = None
+    result: Reconstruction | None = None
+    model = estimate.flow_model
+    if flow is not None and svf and model is not None and model.level_reference is not None:
+        # the level term found again on the gas (estimation/relevel.py), whether the gas is
+        # asked for or not: one record, one law (a smoother's gas where none is asked for)
+        result = _reconstruct(t1, t2, ts, estimate, reconstruction or "smoother", hysteresis,
+                              static)
+        again = _relevelled(t1, t2, ts, estimate, result.gas, flow, flow_column, sigma,
+                            uncertainty)
+        if again is not None:
+            estimate, static, result = again, _relative_static(again), None
     if reconstruction is not None:
-        result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
-        again = (_relevelled(t1, t2, ts, estimate, result.gas, flow, flow_column, sigma,
-                             uncertainty) if flow is not None and svf else None)
-        if again is not None:  # the level term found again on the gas (estimation/relevel.py)
-            estimate, static = again, _relative_static(again)
+        if result is None:
             result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
         gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
         doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, gas, gas_std)
