@@ -14,7 +14,7 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["lower_band", "spd_solver"]
+__all__ = ["band_solver", "lower_band", "spd_solver"]
 
 
 def _inverse(order: np.ndarray) -> np.ndarray:
@@ -50,10 +50,19 @@ def spd_solver(matrix: sp.spmatrix, order: np.ndarray | None = None,
     in ``order`` (a permutation; None: as they are). Where the matrix is not numerically
     positive definite, or not finite, SuperLU's LU with pivoting instead, so that such systems
     behave as they did before (a nearly singular step is then rejected by its cost)."""
+    return band_solver(lower_band(matrix, order), order, lambda: matrix)
+
+
+def band_solver(band: np.ndarray, order: np.ndarray | None,
+                matrix: Callable[[], sp.spmatrix]) -> Callable[[np.ndarray], np.ndarray]:
+    """:func:`spd_solver` from a lower band already at hand (:func:`lower_band` of the matrix in
+    ``order``; not changed); ``matrix`` builds the sparse matrix, for the LU fallback only. Why:
+    a damped step changes only the band's diagonal, so a Levenberg search builds the band once
+    for all its trials (`psi_map`)."""
     try:
-        factor = scipy.linalg.cholesky_banded(lower_band(matrix, order), lower=True)
+        factor = scipy.linalg.cholesky_banded(band, lower=True)
     except (np.linalg.LinAlgError, ValueError):
-        lu = spl.splu(sp.csc_matrix(matrix))
+        lu = spl.splu(sp.csc_matrix(matrix()))
         return lu.solve
     if order is None:
         return lambda rhs: scipy.linalg.cho_solve_banded((factor, True), rhs)

@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from dualprobe.estimation.banded import spd_solver
+from dualprobe.estimation.banded import band_solver, lower_band, spd_solver
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.reuse import reused
 
@@ -242,14 +242,19 @@ class _Problem:
         return x + spd_solver(lin.a.T @ lin.a)(-(lin.a.T @ (lin.a @ x + lin.c))), lin
 
 
-def _damped_step(a: sp.csc_matrix, b: np.ndarray, grad: np.ndarray, damping: float,
-                 sparse_count: int, state_count: int, order: np.ndarray) -> np.ndarray:
+def _damped_step(a: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad: np.ndarray,
+                 damping: float, sparse_count: int, state_count: int, order: np.ndarray,
+                 ) -> np.ndarray:
     """Solve (J'J + damping diag on the parameters) step = -J'r, with the static map's two
-    dense columns by a Schur complement (the sparse factor stays banded, in ``order``)."""
-    diag = a.diagonal()
+    dense columns by a Schur complement (the sparse factor stays banded, in ``order``;
+    ``band`` J'J's lower band in that order, built once for the search's trials)."""
+    diag = np.empty(sparse_count)
+    diag[order] = band[0]  # the band's first row is the diagonal, in order
     damp = np.zeros(sparse_count)
     damp[state_count:] = damping * np.maximum(diag[state_count:], 1e-12)
-    solve = spd_solver(a + sp.diags(damp), order)
+    damped = band.copy()
+    damped[0] += damp[order]
+    solve = band_solver(damped, order, lambda: a + sp.diags(damp))
     cross, corner = b[:sparse_count], b[sparse_count:]
     corner = corner + np.diag(damping * np.maximum(np.diag(corner), 1e-12))
     solved = solve(np.column_stack([-grad[:sparse_count], cross]))
@@ -260,12 +265,13 @@ def _damped_step(a: sp.csc_matrix, b: np.ndarray, grad: np.ndarray, damping: flo
 
 
 def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
-           normal: sp.csc_matrix, coupling: np.ndarray, grad: np.ndarray, damping: float,
+           normal: sp.csc_matrix, band: np.ndarray, coupling: np.ndarray, grad: np.ndarray,
+           damping: float,
            ) -> tuple[tuple[np.ndarray, ...], float]:
     """One damped step from ``state`` (states, log psi knots, static map), the states then
     re-solved for the new psi: the new (state, residuals, Jacobians) and its cost."""
     x, z, mapping = state
-    step = _damped_step(normal, coupling, grad, damping, normal.shape[0], x.size,
+    step = _damped_step(normal, band, coupling, grad, damping, normal.shape[0], x.size,
                         problem.order)
     z_new = z + step[x.size:x.size + problem.knots]
     map_new = mapping + step[x.size + problem.knots:]
@@ -288,7 +294,9 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
         normal = (sparse.T @ sparse).tocsc()
         coupling = np.vstack([sparse.T @ a_s, a_s.T @ a_s])
         grad = np.concatenate([sparse.T @ res, a_s.T @ res])
-        attempt = functools.partial(_trial, problem, (x, z, mapping), normal, coupling, grad)
+        band = lower_band(normal, problem.order)
+        attempt = functools.partial(_trial, problem, (x, z, mapping), normal, band, coupling,
+                                    grad)
         accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
         if accepted is None:
             break
