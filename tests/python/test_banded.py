@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from dualprobe.estimation.banded import lower_band, spd_solver
+from dualprobe.estimation.banded import GramBand, lower_band, spd_solver
 
 
-def _time_series_system(rng: np.random.Generator, rows: int, per_row: int, knots: int,
-                        ) -> tuple[sp.csc_matrix, np.ndarray]:
+def _time_series_jacobian(rng: np.random.Generator, rows: int, per_row: int, knots: int,
+                          ) -> tuple[sp.csc_matrix, np.ndarray]:
     """J'J of a chain (each residual couples a row's unknowns with the next row's) bordered by
     knots that each reach a run of rows, as in psi_map; and the time order of the unknowns."""
     n = rows * per_row
@@ -24,7 +24,14 @@ def _time_series_system(rng: np.random.Generator, rows: int, per_row: int, knots
     jac = sp.csc_matrix(np.vstack([*blocks, np.eye(n + knots)]))
     keys = np.concatenate([np.repeat(np.arange(rows, dtype=float), per_row),
                            (np.arange(knots) + 0.5) * rows / knots])
-    return (jac.T @ jac).tocsc(), np.argsort(keys, kind="stable")
+    return jac, np.argsort(keys, kind="stable")
+
+
+def _time_series_system(rng: np.random.Generator, rows: int, per_row: int, knots: int,
+                        ) -> tuple[sp.csc_matrix, np.ndarray]:
+    """J'J of :func:`_time_series_jacobian`, and the time order of the unknowns."""
+    jac, order = _time_series_jacobian(rng, rows, per_row, knots)
+    return (jac.T @ jac).tocsc(), order
 
 
 def test_spd_systems_are_solved_as_dense_lapack_solves_them() -> None:
@@ -54,3 +61,25 @@ def test_a_matrix_that_is_not_positive_definite_is_solved_by_lu() -> None:
     rhs = rng.normal(size=matrix.shape[0])
     np.testing.assert_allclose(spd_solver(indefinite, order)(rhs),
                                np.linalg.solve(indefinite.toarray(), rhs), rtol=1e-8)
+
+
+def test_the_gram_band_is_the_band_of_the_sparse_product() -> None:
+    # tolerance: the same products summed in another order (at most ~10 terms per entry of
+    # magnitude ~1): rounding near 1e-15, 1e-12 allows for it and nothing more
+    rng = np.random.default_rng(5)
+    jac, order = _time_series_jacobian(rng, 120, 3, 12)
+    for how in (order, None):
+        gram = GramBand(jac.indices, jac.indptr, jac.shape[1], how)
+        expected = lower_band((jac.T @ jac).tocsc(), how)
+        got = gram.band(jac.data)
+        assert got.shape == expected.shape
+        np.testing.assert_allclose(got, expected, rtol=0.0, atol=1e-12)
+        assert gram.fits(jac)
+    # new values in the same pattern: the band follows them
+    again = jac.copy()
+    again.data = rng.normal(size=again.data.size)
+    np.testing.assert_allclose(gram.band(again.data), lower_band((again.T @ again).tocsc()),
+                               rtol=0.0, atol=1e-12)
+    # another pattern does not fit
+    other, _ = _time_series_jacobian(rng, 120, 3, 11)
+    assert not gram.fits(other)

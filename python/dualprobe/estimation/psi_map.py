@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from dualprobe.estimation.banded import band_solver, lower_band, spd_solver
+from dualprobe.estimation.banded import GramBand, band_solver
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.reuse import reused
 
@@ -126,11 +126,15 @@ class _Problem:
         self.pair, self.weight = np.stack([j, right], axis=1), np.stack([1.0 - f, f], axis=1)
         self.centre = float(np.mean(y[0]))
         # the unknowns (states row by row, then the knots) in time order, each knot among the
-        # rows it reaches: the damped normal matrix is then banded (banded.spd_solver)
+        # rows it reaches: the damped normal matrix is then banded (banded.GramBand)
         keys = np.concatenate([np.repeat(np.arange(self.n, dtype=float), self.nx),
                                np.arange(self.knots) * float(spacing) - 0.25])
         self.order = np.argsort(keys, kind="stable")
         self.position, self.csc, self.count = self._pattern()
+        # J'J's band straight from J's values: the states' Jacobian (its pattern is fixed) and
+        # the joint one with the knots (checked against its pattern at every use)
+        self.states_gram = GramBand(*self.csc, self.n * self.nx)
+        self.joint_gram: GramBand | None = None
         self.total = self.count + 2 * self.knots - 1  # the residuals: then the knots' priors
 
     def zeta(self, z: np.ndarray) -> np.ndarray:
@@ -239,22 +243,33 @@ class _Problem:
         linearisation there."""
         lin = self.linear(z, static)
         # the states row by row: block-tridiagonal, banded as they are
-        return x + spd_solver(lin.a.T @ lin.a)(-(lin.a.T @ (lin.a @ x + lin.c))), lin
+        solve = band_solver(self.states_gram.band(lin.a.data), None, lambda: lin.a.T @ lin.a)
+        return x + solve(-(lin.a.T @ (lin.a @ x + lin.c))), lin
+
+    def joint_band(self, jacobian: sp.csc_matrix) -> np.ndarray:
+        """The lower band of J'J, the unknowns in time order, for the joint Jacobian of states
+        and knots (CSC)."""
+        if self.joint_gram is None or not self.joint_gram.fits(jacobian):
+            self.joint_gram = GramBand(jacobian.indices, jacobian.indptr, jacobian.shape[1],
+                                       self.order)
+        return self.joint_gram.band(jacobian.data)
 
 
-def _damped_step(a: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad: np.ndarray,
+def _damped_step(jacobian: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad: np.ndarray,
                  damping: float, sparse_count: int, state_count: int, order: np.ndarray,
                  ) -> np.ndarray:
     """Solve (J'J + damping diag on the parameters) step = -J'r, with the static map's two
     dense columns by a Schur complement (the sparse factor stays banded, in ``order``;
-    ``band`` J'J's lower band in that order, built once for the search's trials)."""
+    ``band`` J'J's lower band in that order, built once for the search's trials; J the
+    sparse ``jacobian``)."""
     diag = np.empty(sparse_count)
     diag[order] = band[0]  # the band's first row is the diagonal, in order
     damp = np.zeros(sparse_count)
     damp[state_count:] = damping * np.maximum(diag[state_count:], 1e-12)
     damped = band.copy()
     damped[0] += damp[order]
-    solve = band_solver(damped, order, lambda: a + sp.diags(damp))
+    solve = band_solver(damped, order,
+                        lambda: (jacobian.T @ jacobian).tocsc() + sp.diags(damp))
     cross, corner = b[:sparse_count], b[sparse_count:]
     corner = corner + np.diag(damping * np.maximum(np.diag(corner), 1e-12))
     solved = solve(np.column_stack([-grad[:sparse_count], cross]))
@@ -265,13 +280,13 @@ def _damped_step(a: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad: np.nda
 
 
 def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
-           normal: sp.csc_matrix, band: np.ndarray, coupling: np.ndarray, grad: np.ndarray,
+           jacobian: sp.csc_matrix, band: np.ndarray, coupling: np.ndarray, grad: np.ndarray,
            damping: float,
            ) -> tuple[tuple[np.ndarray, ...], float]:
     """One damped step from ``state`` (states, log psi knots, static map), the states then
     re-solved for the new psi: the new (state, residuals, Jacobians) and its cost."""
     x, z, mapping = state
-    step = _damped_step(normal, band, coupling, grad, damping, normal.shape[0], x.size,
+    step = _damped_step(jacobian, band, coupling, grad, damping, jacobian.shape[1], x.size,
                         problem.order)
     z_new = z + step[x.size:x.size + problem.knots]
     map_new = mapping + step[x.size + problem.knots:]
@@ -291,11 +306,10 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
     while done < iterations:
         done += 1
         sparse = sp.hstack([a_x, a_z]).tocsc()
-        normal = (sparse.T @ sparse).tocsc()
         coupling = np.vstack([sparse.T @ a_s, a_s.T @ a_s])
         grad = np.concatenate([sparse.T @ res, a_s.T @ res])
-        band = lower_band(normal, problem.order)
-        attempt = functools.partial(_trial, problem, (x, z, mapping), normal, band, coupling,
+        band = problem.joint_band(sparse)
+        attempt = functools.partial(_trial, problem, (x, z, mapping), sparse, band, coupling,
                                     grad)
         accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
         if accepted is None:
