@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-from dualprobe.estimation.banded import GramBand, lower_band, spd_solver
+from dualprobe.estimation.banded import GramBand, bordered_solver, lower_band, spd_solver
 
 
 def _time_series_jacobian(rng: np.random.Generator, rows: int, per_row: int, knots: int,
@@ -83,3 +83,33 @@ def test_the_gram_band_is_the_band_of_the_sparse_product() -> None:
     # another pattern does not fit
     other, _ = _time_series_jacobian(rng, 120, 3, 11)
     assert not gram.fits(other)
+
+
+def _bordered(rng: np.random.Generator, border: int, size: int) -> sp.csc_matrix:
+    """An SPD matrix of ``border`` unknowns coupled to all, then ``size`` banded ones (the
+    tracking pencil's derivative columns and knots)."""
+    band = sp.diags([rng.normal(size=size - j) for j in range(4)], list(range(4)),
+                    shape=(size, size))
+    rest = (band @ band.T + sp.identity(size)).tocsc()
+    edge = rng.normal(size=(size, border))
+    corner = edge.T @ edge + np.eye(border) * size
+    return sp.bmat([[sp.csc_matrix(corner), sp.csc_matrix(edge.T)],
+                    [sp.csc_matrix(edge), rest]]).tocsc()
+
+
+def test_a_bordered_banded_system_is_solved_as_dense_lapack_solves_it() -> None:
+    # tolerance as above: well conditioned (the band's identity and the corner's weight),
+    # rounding near 1e-14
+    rng = np.random.default_rng(6)
+    for border in (0, 2, 5):
+        matrix = _bordered(rng, border, 300)
+        rhs = rng.normal(size=matrix.shape[0])
+        np.testing.assert_allclose(bordered_solver(matrix, border)(rhs),
+                                   np.linalg.solve(matrix.toarray(), rhs), rtol=1e-9,
+                                   atol=1e-12)
+    # not positive definite: the LU of the whole matrix
+    matrix = _bordered(rng, 2, 100)
+    indefinite = (matrix - sp.identity(102) * 2.0 * matrix.diagonal().max()).tocsc()
+    rhs = rng.normal(size=102)
+    np.testing.assert_allclose(bordered_solver(indefinite, 2)(rhs),
+                               np.linalg.solve(indefinite.toarray(), rhs), rtol=1e-8)

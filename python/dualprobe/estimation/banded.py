@@ -14,7 +14,7 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["GramBand", "band_solver", "lower_band", "spd_solver"]
+__all__ = ["GramBand", "band_solver", "bordered_solver", "lower_band", "spd_solver"]
 
 
 def _inverse(order: np.ndarray) -> np.ndarray:
@@ -113,5 +113,35 @@ def band_solver(band: np.ndarray, order: np.ndarray | None,
 
     def solve(rhs: np.ndarray) -> np.ndarray:
         return scipy.linalg.cho_solve_banded((factor, True), rhs[order])[inverse]
+
+    return solve
+
+
+def bordered_solver(matrix: sp.csc_matrix, border: int) -> Callable[[np.ndarray], np.ndarray]:
+    """A solver of ``matrix x = b`` (b a vector) for a sparse SPD matrix whose first ``border``
+    unknowns reach all others and whose rest is banded as it stands (the cross-relation's
+    derivative columns and its knots, :mod:`dualprobe.estimation.tracking`): the banded block
+    by banded Cholesky, the border by its Schur complement. Where the block is not numerically
+    positive definite, or the complement is singular, SuperLU's LU of the whole matrix. Why:
+    SuperLU's factorisation of the tracking pencil was 58 ms a call (144 calls, 8 s on a 30 min
+    10 Hz record); the band's is well under that."""
+    a = sp.csc_matrix(matrix)
+    if not 0 <= border < a.shape[0]:
+        return spl.splu(a).solve
+    block = a[border:, border:]
+    cross = a[border:, :border].toarray()
+    corner = a[:border, :border].toarray()
+    try:
+        factor = scipy.linalg.cholesky_banded(lower_band(block), lower=True)
+        inner = scipy.linalg.cho_solve_banded((factor, True), cross)
+        schur = scipy.linalg.cho_factor(corner - cross.T @ inner)
+    except (np.linalg.LinAlgError, ValueError):
+        return spl.splu(a).solve
+
+    def solve(rhs: np.ndarray) -> np.ndarray:
+        top, rest = rhs[:border], rhs[border:]
+        base = scipy.linalg.cho_solve_banded((factor, True), rest)
+        head = scipy.linalg.cho_solve(schur, top - cross.T @ base)
+        return np.concatenate([head, base - inner @ head])
 
     return solve

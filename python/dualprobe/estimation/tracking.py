@@ -31,6 +31,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
 from dualprobe.estimation import engine
+from dualprobe.estimation.banded import bordered_solver
 from dualprobe.estimation.knots import (
     KnotSystem,
     RowFilter,
@@ -56,14 +57,15 @@ class TrackSolution:
     vector: np.ndarray  # [dense coefficients, knot coefficients], psi normalised to mean 1
 
 
-def _checked_inverse(a: sp.csc_matrix) -> spl.LinearOperator:
-    """``a``'s inverse for the shift-invert Lanczos, raising RuntimeError on a non-finite
+def _checked_inverse(a: sp.csc_matrix, dense: int) -> spl.LinearOperator:
+    """``a``'s inverse for the shift-invert Lanczos (``dense`` derivative columns first, then
+    the banded knots: :func:`banded.bordered_solver`), raising RuntimeError on a non-finite
     solve: a nearly singular pencil otherwise hands ARPACK infinities, which it iterates on
     (LAPACK's DLASCL complaining on the terminal) before failing or returning garbage."""
-    lu = spl.splu(a)
+    inverse = bordered_solver(a, dense)
 
     def solve(x: np.ndarray) -> np.ndarray:
-        y = lu.solve(np.asarray(x, dtype=float))
+        y = inverse(np.asarray(x, dtype=float))
         if not np.all(np.isfinite(y)):
             raise RuntimeError("the tracking pencil is singular")
         return y
@@ -92,7 +94,7 @@ def solve_penalised(system: KnotSystem, penalty: float,
         raise TrackingError("the tracking system is not finite (no excitation somewhere)")
     try:
         values, vectors = spl.eigsh(a, k=1, M=m, sigma=0.0, which="LM",
-                                    OPinv=_checked_inverse(a))
+                                    OPinv=_checked_inverse(a, system.dense.shape[0]))
     except (spl.ArpackError, spl.ArpackNoConvergence, RuntimeError):
         # shift-invert Lanczos can stall on nearly singular pencils: the dense solver for
         # moderate sizes, else no tracking
