@@ -249,6 +249,7 @@ class _Problem:
     def joint_band(self, jacobian: sp.csc_matrix) -> np.ndarray:
         """The lower band of J'J, the unknowns in time order, for the joint Jacobian of states
         and knots (CSC)."""
+        jacobian.sum_duplicates()  # GramBand needs each (row, column) once; a no-op if so
         if self.joint_gram is None or not self.joint_gram.fits(jacobian):
             self.joint_gram = GramBand(jacobian.indices, jacobian.indptr, jacobian.shape[1],
                                        self.order)

@@ -102,7 +102,7 @@ class ModelCheck:
 # sensors spans at most about 100-fold (mass flow ~30x from idle to rated power, times the gas
 # temperature's ~2-3x; the drive cycles 7-60 m/s, 8.6x) and tau ~ v^-m with m <= 0.7
 # (paper eq. 1; the range 0.3-0.7), so psi spans at most 100^0.7 ~ 25-fold. Measured
-# (logger_sweep.py 98 8 short, 99 6): tracked spans 1.8-4.3 on the pairs within the bounds;
+# (logger_sweep.py 98 8 short, 99 6): the other tracked schedules spanned 1.8-5.8-fold;
 # 35x on a 50 Hz pair with a ratio of 1.46 and 0.12 / 0.23 s sheaths whose per-row time
 # constants were off by factors of 0.3-2.5 (the gas 4.8x the oracle) while its misfit stayed
 # at 1.12 times the noise and the check called it adequate.
