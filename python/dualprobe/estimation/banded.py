@@ -62,9 +62,10 @@ class GramBand:
         starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
         lengths = np.diff(np.r_[starts, row.size])
         first, second = [], []
+        longest = int(lengths.max(initial=0))
         # every pair of values in a row, once: its two columns' places ordered (i >= j in J'J)
-        for i in range(int(lengths.max(initial=0))):
-            for j in range(int(lengths.max(initial=0))):
+        for i in range(longest):
+            for j in range(longest):
                 rows = starts[lengths > max(i, j)]
                 p, q = by_row[rows + i], by_row[rows + j]
                 keep = place[p] > place[q] if i != j else np.ones(p.size, bool)

@@ -25,7 +25,7 @@ from dualprobe.estimation.without_flow import track_without_flow
 from dualprobe.io import InputError
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
-__all__ = ["METHODS", "TRACKING", "characterise_pair", "relevelled"]
+__all__ = ["METHODS", "TRACKING", "characterise_pair", "has_level_term", "relevelled"]
 
 
 METHODS = ("auto", "svf", "ls", "tls", "gtls")
@@ -231,6 +231,14 @@ def _with_level(model: FlowModel, signal: FlowSignal) -> FlowSignal:
     return dataclasses.replace(signal, factor=model.psi / signal.psi(model.exponent))
 
 
+def has_level_term(estimate: PairEstimate) -> bool:
+    """Whether ``estimate``'s flow law carries a gas-level term that :func:`relevelled` can
+    search again (an SVF fit with the flow)."""
+    model = estimate.flow_model
+    return (model is not None and model.level_reference is not None
+            and estimate.method in ("auto", "svf"))
+
+
 def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate,
                gas: np.ndarray, *, flow: np.ndarray, flow_column: str | None,
                noise_std: float | Sequence[float] | None = None,
@@ -241,7 +249,7 @@ def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate
     (:func:`dualprobe.estimation.relevel.relevel`), or None where that is not better. The flow
     is taken as the law saw it: held values interpolated, shifted by the law's delay."""
     model = estimate.flow_model
-    if model is None or model.level_reference is None or estimate.method not in ("auto", "svf"):
+    if model is None or not has_level_term(estimate):
         return None
     a, b, ts = _check_inputs(t1, t2, ts, estimate.method, estimate.order, False)
     sigma, source = _noise_levels(a, b, noise_std)

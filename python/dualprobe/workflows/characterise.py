@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from dualprobe.estimation import METHODS, PairEstimate, characterise_pair, relevelled
+from dualprobe.estimation.pair import has_level_term
 from dualprobe.estimation.reuse import Kept
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
@@ -239,8 +240,7 @@ def characterise_arrays(
     rmse: float | None = None
     residuals = None
     result: Reconstruction | None = None
-    model = estimate.flow_model
-    if flow is not None and svf and model is not None and model.level_reference is not None:
+    if flow is not None and svf and has_level_term(estimate):
         # the level term found again on the gas (estimation/relevel.py), whether the gas is
         # asked for or not: one record, one law (a smoother's gas where none is asked for)
         result = _reconstruct(t1, t2, ts, estimate, reconstruction or "smoother", hysteresis,
@@ -248,7 +248,7 @@ def characterise_arrays(
         again = _relevelled(t1, t2, ts, estimate, result.gas, flow, flow_column, sigma,
                             uncertainty)
         if again is not None:
-            estimate, static, result = again, _relative_static(again), None
+            (estimate, static), result = again, None
     if reconstruction is not None:
         if result is None:
             result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
@@ -321,10 +321,12 @@ def _rival_doubt(
 
 def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate,
                 gas: np.ndarray, flow: np.ndarray, column: str | None,
-                sigma: tuple[float, float] | None, uncertainty: bool) -> PairEstimate | None:
-    """``estimate`` with its level term searched again on the reconstructed ``gas``, or None
-    (:func:`dualprobe.estimation.relevelled`); the order notes this workflow added are kept,
-    the new fit's own identifiability beside them."""
+                sigma: tuple[float, float] | None, uncertainty: bool,
+                ) -> tuple[PairEstimate, tuple[float, float] | None] | None:
+    """``estimate`` with its level term searched again on the reconstructed ``gas``, and its
+    static map (:func:`_relative_static`), or None (:func:`dualprobe.estimation.relevelled`);
+    the order notes this workflow added are kept, the new fit's own identifiability beside
+    them."""
     again = relevelled(t1, t2, ts, estimate, gas, flow=flow, flow_column=column,
                        noise_std=sigma, uncertainty=uncertainty)
     static = _relative_static(again) if again is not None else None
@@ -336,7 +338,7 @@ def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimat
             ident[key] = estimate.identifiability[key]
     if "message" not in estimate.identifiability:
         ident.pop("message", None)
-    return replace(again, identifiability=ident)
+    return replace(again, identifiability=ident), static
 
 
 def _noise_levels(estimate: PairEstimate, static: tuple[float, float] | None
