@@ -353,8 +353,8 @@ void bind_class(py::module_& m, const char* name, const char* scalar) {
           "Accumulated noise covariance handed to GTLS (documented columns).")
       .def_property_readonly(
           "omega_moments", [](const Py& self) { return self.handle->omega_moments(); },
-          "Moments of omega = [1, (h1, h2), (phi), b_1..b_K] (no schedule: [has interval, h1, "
-          "h2] or [1]).")
+          "Moments of omega = [1, (h1, h2), (phi), b_1..b_K, (p1, p2)] (no schedule: [has "
+          "interval, h1, h2, p1, p2] or [1]; p_i: h_i on the row before).")
       .def_property_readonly(
           "moment_layout", [](const Py& self) { return self.handle->moment_layout(); },
           "Named slices of the moment vector.")

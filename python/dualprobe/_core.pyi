@@ -118,7 +118,7 @@ class SvfEstimator:
     @property
     def omega_moments(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Moments of omega = [1, (h1, h2), (phi), b_1..b_K] (no schedule: [has interval, h1, h2] or [1]).
+        Moments of omega = [1, (h1, h2), (phi), b_1..b_K, (p1, p2)] (no schedule: [has interval, h1, h2, p1, p2] or [1]; p_i: h_i on the row before).
         """
     @property
     def rows(self) -> float:
@@ -194,7 +194,7 @@ class SvfEstimatorF:
     @property
     def omega_moments(self) -> numpy.typing.NDArray[numpy.float64]:
         """
-        Moments of omega = [1, (h1, h2), (phi), b_1..b_K] (no schedule: [has interval, h1, h2] or [1]).
+        Moments of omega = [1, (h1, h2), (phi), b_1..b_K, (p1, p2)] (no schedule: [has interval, h1, h2, p1, p2] or [1]; p_i: h_i on the row before).
         """
     @property
     def rows(self) -> float:

@@ -65,7 +65,8 @@ C++: doubling P <- P + A P A^T, A <- A^2 from P = q q^T, A = phi, ~60 steps). Wi
 M_i of :func:`column_maps` (z = M1 x(T1) + M2 x(T2)) and the derivative map L:
 ``C = sum_i sigma_i^2 M_i L P L^T M_i^T``, accumulated as ``rows * C``. Hysteresis: each
 row contributes ``E C E^T`` with E spreading the x_1 noise as (h, 1 - h) over its two
-columns (count the (h1, h2) combinations). GTLS: the eigenvector of the smallest
+columns (count the (h1, h2) combinations), plus the switch term where h changes
+(:func:`switch_covariance`). GTLS: the eigenvector of the smallest
 generalised eigenvalue of ``S v = mu (rows C) v`` after scaling both by ``diag(S)^-1/2``
 and adding ``1e-12 max(trace, 1) I`` to the scaled C (noise-free data -> TLS); theta =
 -v / v_last. With the right noise level mu_1 ~ 1 (test); only sigma1/sigma2 changes
@@ -134,6 +135,8 @@ __all__ = [
     "regression_columns",
     "residual_effective_samples",
     "solve_gtls",
+    "split_switch_noise",
+    "switch_covariance",
 ]
 
 
@@ -391,7 +394,8 @@ def estimate(
         scatter = cols[:, warmup:] @ cols[:, warmup:].T
     cov = noise_covariance(disc, order, sigma1, sigma2, static)
     if directions is not None:
-        cov = _split_covariance(cov, directions, warmup)
+        g1 = split_switch_noise(disc)
+        cov = _split_covariance(cov, directions, warmup, (sigma1**2 * g1, sigma2**2 * g1))
     else:
         cov = cov * rows
     theta, mu, _ = solve_gtls(scatter, cov)
@@ -435,14 +439,43 @@ def merged_theta(theta: np.ndarray) -> np.ndarray:
                            theta[4:]))
 
 
+def split_switch_noise(disc: FilterDiscretisation) -> float:
+    """``(tf/Ts)^2 G1`` for unit noise: G1 the lag-1 sum of the split column's response g to
+    one interval's slope (ZOH cascade, last state), summed from that response itself."""
+    zoh = _zoh_of(disc)
+    n = math.ceil((60.0 + 2.0 * disc.m) * disc.tf / disc.ts) + 2
+    pulse = np.zeros(n - 1)
+    pulse[0] = 1.0
+    g = _last_state(pulse, zoh, n)
+    return float(g[1:] @ g[:-1]) * (disc.tf / disc.ts) ** 2
+
+
+def switch_covariance(weights: np.ndarray, previous: np.ndarray, k: float) -> np.ndarray:
+    """The split columns' noise beyond ``C0 sum w_a w_b`` (rows of ``weights``: each column's
+    per-row weight, h or 1 - h; ``previous``: the same on the row before; ``k``: sigma^2 times
+    :func:`split_switch_noise`). A column carries ``sum_j g_{k-j} w_j (e_{j+1} - e_j) tf/Ts``,
+    whose accumulated covariance is ``sigma^2 (tf/Ts)^2 [2 G0 sum w_a w_b - G1 sum (w_a(k)
+    w_b(k-1) + w_a(k-1) w_b(k))]``; C0 = sigma^2 (tf/Ts)^2 (2 G0 - 2 G1) counts all but this."""
+    lagged = weights @ previous.T
+    return k * (2.0 * (weights @ weights.T) - lagged - lagged.T)
+
+
+def _previous(h: np.ndarray, start: int) -> np.ndarray:
+    """h on the interval before each of ``h[start:]`` (undecided, 1/2, before the first)."""
+    return np.concatenate(([h[start - 1] if start > 0 else 0.5], h[start:-1]))
+
+
 def _split_covariance(
-    cov: np.ndarray, directions: tuple[np.ndarray, np.ndarray], warmup: int
+    cov: np.ndarray, directions: tuple[np.ndarray, np.ndarray], warmup: int,
+    switch: tuple[float, float],
 ) -> np.ndarray:
     """Accumulated noise covariance of the split rows: each row's derivative noise is
     attributed to the heating/cooling columns with the weights (h, 1 - h) of its current
-    interval (exact while h is constant over the filter memory)."""
-    h1 = directions[0][max(warmup - 1, 0):]
-    h2 = directions[1][max(warmup - 1, 0):]
+    interval (exact while h is constant over the filter memory), plus the switch term of
+    sensor i's pair of columns (``switch[i]``: sigma_i^2 times :func:`split_switch_noise`)."""
+    start = max(warmup - 1, 0)
+    h1 = directions[0][start:]
+    h2 = directions[1][start:]
     pairs, counts = np.unique(np.column_stack((h1, h2)), axis=0, return_counts=True)
     p = cov.shape[0]
     total = np.zeros((p + 2, p + 2))
@@ -453,5 +486,11 @@ def _split_covariance(
         for i in range(2, p):
             e[i + 2, i] = 1.0
         total += float(count) * (e @ cov @ e.T)
+    for i, h in enumerate(directions):
+        h = np.asarray(h, dtype=float)
+        hp = _previous(h, start)
+        weights = np.array([h[start:], 1.0 - h[start:]])
+        previous = np.array([hp, 1.0 - hp])
+        total[2 * i:2 * i + 2, 2 * i:2 * i + 2] += switch_covariance(weights, previous, switch[i])
     # the first row (interval -1) has no direction: count it like its successor
     return total * (h1.size + 1) / h1.size

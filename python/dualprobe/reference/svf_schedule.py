@@ -59,8 +59,10 @@ a per-row weight times the stationary noise of its unscheduled source column (``
 (split: h and 1 - h of the row's interval; the first row, which has no interval, counts as
 undecided, h = 1/2), y_1 columns weight phi (source: x_2 of the same sensor), static columns
 weight b_j (source: the unscheduled static column; affine: both psi). So the accumulated
-``C[a][b] = C0[src a][src b] sum_rows w_a w_b``; the streaming core accumulates the moments of
-``omega(k) = [1, h1, h2, phi, b_1..b_K]`` (the entries the variant has) for this.
+``C[a][b] = C0[src a][src b] sum_rows w_a w_b`` (split: plus the switch term,
+:func:`dualprobe.reference.svf.switch_covariance`); the streaming core accumulates the moments
+of ``omega(k) = [1, h1, h2, phi, b_1..b_K, p1, p2]`` (the entries the variant has; p_i: h_i on
+the row before) for this.
 
 Transients are projected out as in :mod:`.svf` with ``Sbb^+``: the pseudo-inverse of the
 Gram matrix scaled by its diagonal, eigen-directions below 256 eps of the largest dropped
@@ -277,6 +279,13 @@ def estimate(
     w = sc.weights[:, mask]
     c0 = svf.noise_covariance(disc, order, sigma1, sigma2, static)
     noise = c0[np.ix_(sc.sources, sc.sources)] * (w @ w.T)
+    if hysteresis:  # the switch term (svf.switch_covariance); row 0's previous h: undecided
+        g1 = svf.split_switch_noise(disc)
+        for i, sigma in enumerate((sigma1, sigma2)):
+            block = slice(2 * i, 2 * i + 2)
+            full = sc.weights[block]
+            previous = np.column_stack((np.full(2, 0.5), full[:, :-1]))[:, mask]
+            noise[block, block] += svf.switch_covariance(w[block], previous, sigma**2 * g1)
     theta, mu, _ = svf.solve_gtls(scatter, noise)
     rows = int(np.count_nonzero(mask))
     n_dyn = 4 if hysteresis else 2 * order
