@@ -160,19 +160,20 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
     if math.isfinite(statistic) and statistic > GAP_THRESHOLD:
         split = estimate.time_constants_heat is not None
         column = model.column if model is not None and model.kind == "constant" else None
-        # Name only what the model lacks. With the split fitted, its own limit instead of
-        # "hysteretic": h comes from the noisy slopes, and where a sensor turns often (a
-        # fluctuating gas) misclassified intervals add to the misfit (a 30 min drive cycle,
-        # cooling 1.3 times slower: 1.06 x the noise with the true directions, 1.5 with the
-        # classified ones).
-        causes = ["of higher order"] + ([] if split else ["hysteretic"]) + (
+        # Name only what the model lacks. With the split fitted (order 1 only), its own limit
+        # instead of "hysteretic": h comes from the noisy slopes, and where a sensor turns
+        # often (a fluctuating gas) misclassified intervals add to the misfit (a 30 min drive
+        # cycle, cooling 1.3 times slower: 1.06 x the noise with the true directions, 1.5 with
+        # the classified ones; a sheath gave 126, so higher order stays first).
+        causes = ["of higher order" + (" (the split is first order: leave --hysteresis out "
+                                       "to identify a sheath stage)" if split else "")]
+        causes += ([] if split else ["hysteretic"]) + (
             [] if column is not None else ["follow the flow"]) + ["see different gas temperatures"]
-        others = ", ".join(causes[:-1]) + ", or " + causes[-1]
-        why = f"the sensors may be {others}"
+        why = "the sensors may be " + ", ".join(causes[:-1]) + ", or " + causes[-1]
         if split:
-            why = ("the heating/cooling split is decided from each sensor's slope, which the "
-                   "noise hides where a sensor turns often (a fluctuating gas); the sensors may "
-                   f"also be {others}")
+            why += ("; or the heating/cooling split, decided from each sensor's slope, "
+                    "misclassifies where noise hides the slope (a sensor that turns often with "
+                    "a fluctuating gas)")
         if column is not None:
             # "follow the flow" beside a flow column given: say the column showed none of it
             # (a channel frozen for half a drive cycle: misfit 6610, reported constant)
