@@ -1072,6 +1072,25 @@ class SvfEstimator {
   // the noise sample at the switch, which the differences no longer cancel), with opposite
   // signs in heating and cooling. A hysteretic drive cycle switches about once a second: left
   // out, the misfit read 2.55 times the noise with the true directions, 1.06 with it.
+  // omega index of an entry's value on the row before: h_i -> p_i, the rest as they are
+  // (the constant; the split's variants have no other per-row entry the switch term reads).
+  static constexpr int lagged(int index) noexcept {
+    return Hysteresis && (index == 1 || index == 2) ? omega_previous + index - 1 : index;
+  }
+
+  // sum_rows w_a(k) w_b(k) (``lag``: w_b(k - 1)) with w = omega[positive] - omega[negative],
+  // from the omega moments m.
+  template <typename T>
+  static T weight_moment(const Eigen::Matrix<T, omega_dim, omega_dim>& m, const ColumnNoise& a,
+                         const ColumnNoise& b, bool lag) noexcept {
+    const auto at = [&m, lag](int i, int j) { return m(i, lag ? lagged(j) : j); };
+    T sum = at(a.positive, b.positive);
+    if (a.negative >= 0) sum -= at(a.negative, b.positive);
+    if (b.negative >= 0) sum -= at(a.positive, b.negative);
+    if (a.negative >= 0 && b.negative >= 0) sum += at(a.negative, b.negative);
+    return sum;
+  }
+
   template <typename T>
   void add_switch_noise(SolveMatrix& c, const Eigen::Matrix<T, omega_dim, omega_dim>& m,
                         T scale) const noexcept {
@@ -1083,26 +1102,18 @@ class SvfEstimator {
       const double step = double(config_.sample_interval) / double(config_.filter_time_constant);
       const auto zoh = SvfDiscretisation<states>::make(step, false);
       const double g1 = (zoh.phi * zoh.state_covariance)(states - 1, states - 1) / (step * step);
-      for (int i = 0; i < 2; ++i) {
-        const double sigma = double(i == 0 ? config_.sigma1 : config_.sigma2);
-        const int h = 1 + i;
-        const int p = omega_previous + i;
-        const T n = m(0, 0);
-        // sum w_a w_b and sum w_a(k) w_b(k-1) for w = h (heating) and 1 - h (cooling)
-        const T heat_heat = m(h, h);
-        const T cool_cool = n - T(2) * m(0, h) + m(h, h);
-        const T heat_cool = m(0, h) - m(h, h);
-        const T lag_heat_heat = m(h, p);
-        const T lag_cool_cool = n - m(0, h) - m(0, p) + m(h, p);
-        const T lag_heat_cool = m(0, h) - m(h, p);  // sum h(k) (1 - h(k-1))
-        const T lag_cool_heat = m(0, p) - m(h, p);  // sum (1 - h(k)) h(k-1)
-        const T k = scale * T(g1 * sigma * sigma);
-        const int a = 2 * i;
-        c(a, a) += k * T(2) * (heat_heat - lag_heat_heat);
-        c(a + 1, a + 1) += k * T(2) * (cool_cool - lag_cool_cool);
-        const T cross = k * (T(2) * heat_cool - lag_heat_cool - lag_cool_heat);
-        c(a, a + 1) += cross;
-        c(a + 1, a) += cross;
+      for (int a = 0; a < dynamic_columns; ++a) {
+        const ColumnNoise na = column_noise(a);
+        for (int b = a; b < dynamic_columns; ++b) {
+          const ColumnNoise nb = column_noise(b);
+          if (na.source != nb.source) continue;  // the two sensors' noises are independent
+          const double sigma = double(na.source == 0 ? config_.sigma1 : config_.sigma2);
+          const T entry = scale * T(g1 * sigma * sigma) *
+                          (T(2) * weight_moment(m, na, nb, false) - weight_moment(m, na, nb, true) -
+                           weight_moment(m, nb, na, true));
+          c(a, b) += entry;
+          if (b != a) c(b, a) += entry;
+        }
       }
     } else {
       (void)c;
@@ -1161,11 +1172,8 @@ class SvfEstimator {
         const ColumnNoise na = column_noise(a);
         for (int b = a; b < columns; ++b) {
           const ColumnNoise nb = column_noise(b);
-          T weights = m(na.positive, nb.positive);
-          if (na.negative >= 0) weights -= m(na.negative, nb.positive);
-          if (nb.negative >= 0) weights -= m(na.positive, nb.negative);
-          if (na.negative >= 0 && nb.negative >= 0) weights += m(na.negative, nb.negative);
-          const T entry = weights * T(noise_covariance_(na.source, nb.source));
+          const T entry =
+              weight_moment(m, na, nb, false) * T(noise_covariance_(na.source, nb.source));
           c(a, b) = entry;
           c(b, a) = entry;
         }
