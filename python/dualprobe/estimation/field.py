@@ -80,6 +80,20 @@ class FlowModel:
         return float(self.evidence.get("psi_noise", math.nan))
 
     @property
+    def psi_flow_noise(self) -> float:
+        """A flow law's noise in log psi (RMS): the column's own (``flow_noise``, see
+        :mod:`dualprobe.estimation.flow_noise`) times the exponent; 0 where not measured."""
+        noise = float(self.evidence.get("flow_noise", math.nan))
+        return abs(self.exponent) * noise if math.isfinite(noise) else 0.0
+
+    @property
+    def schedule_noise(self) -> float:
+        """The schedule's noise in log psi (RMS) that the gas's uncertainty carries: a tracked
+        one's (``psi_noise``) and a flow law's (``psi_flow_noise``); 0 where neither is known."""
+        noise = self.psi_noise
+        return math.hypot(noise if math.isfinite(noise) else 0.0, self.psi_flow_noise)
+
+    @property
     def sheathed_path(self) -> bool:
         """Tracked through sheath stages without a flow signal (``without_flow._sheathed``)."""
         return bool(self.evidence.get("sheathed_path"))

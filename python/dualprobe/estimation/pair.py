@@ -16,6 +16,7 @@ from dualprobe.estimation.difference import characterise_difference
 from dualprobe.estimation.engine import STATIC_MODELS
 from dualprobe.estimation.field import FlowModel, RunSvf
 from dualprobe.estimation.flow import FlowSignal, check_flow, evidence
+from dualprobe.estimation.flow_noise import column_noise, noise_evidence
 from dualprobe.estimation.flow_timing import shifted, timed_flow_law, unheld
 from dualprobe.estimation.relevel import relevel
 from dualprobe.estimation.result import PairEstimate
@@ -178,6 +179,7 @@ def characterise_pair(
             signal = check_flow(flow, flow_column, a.size)
         except ValueError as exc:
             raise InputError(str(exc)) from None
+        column = signal.values  # as logged: its noise is measured on it (flow_noise)
     run = _runner(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
                   static_model)
     base = run(None)
@@ -204,6 +206,10 @@ def characterise_pair(
             estimate = _hysteresis_beyond_flow(
                 estimate, characterise_svf(a, b, ts, 1, False, sigma, source, tf,
                                            static_model, schedule=model.psi))
+        if signal is not None and model is not None and estimate.status == "ok":
+            refresh = int(model.evidence.get("flow_refresh_rows", 1.0))
+            model.evidence.update(noise_evidence(a, b, estimate, model,
+                                                 column_noise(column, refresh)))
     elif base.status != "ok":
         return base
     conf = confidence(a, b, estimate, model or FlowModel("constant", np.ones(a.size)), signal) \

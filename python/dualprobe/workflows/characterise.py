@@ -359,11 +359,10 @@ def _reconstruct(
     hysteretic = hysteresis and heat is not None and cool is not None
     model = estimate.flow_model
     schedule = None if model is None or model.kind == "constant" else 1.0 / model.psi
-    # a tracked schedule's noise part (tracking.split_noise) is part of the gas's uncertainty:
-    # the error over T_g_std (to the bandwidth) had an RMS of 1.7-3.6 without it on separately
-    # simulated unsheathed tracked pairs, 0.7-1.2 with it (see the README)
-    psi_noise = model.psi_noise if model is not None else math.nan
-    log_std = psi_noise if math.isfinite(psi_noise) else 0.0
+    # a schedule's noise (a tracked one's, tracking.split_noise; a flow column's own) is part
+    # of the gas's uncertainty: the error over T_g_std (to the bandwidth) had an RMS of 1.7-3.6
+    # without it on separately simulated unsheathed tracked pairs, 0.7-1.2 with it (README)
+    log_std = model.schedule_noise if model is not None else 0.0
     try:
         result = reconstruct(
             t1, t2, ts,
@@ -373,7 +372,7 @@ def _reconstruct(
             taus1_cool=cool[0] if hysteretic and cool is not None else None,
             taus2_cool=cool[1] if hysteretic and cool is not None else None,
             relative_static=static, schedule=schedule,
-            schedule_log_std=log_std if math.isfinite(log_std) else 0.0,
+            schedule_log_std=log_std,
         )
     except ValueError as exc:
         # the inputs were validated above: what is left is the data not supporting the

@@ -119,6 +119,19 @@ def schedule_span(model: FlowModel | None) -> float:
     return float(np.max(psi) / np.min(psi)) if psi.size else 1.0
 
 
+# The share of a misfit's excess that a flow column's own noise accounts for
+# (flow_noise.noise_evidence) from which it is named first: a fifth or more (a 3 % noise on the
+# mass flow: about 0.8-1.0 of it; a clean column, under 0.05).
+FLOW_NOISE_SHARE = 0.2
+
+
+def _flow_noise_share(model: FlowModel | None, mu: float) -> float:
+    """The share of the misfit's excess over the noise (``mu - 1``) that the flow column's
+    noise adds (``misfit_flow_noise``), at most 1; 0 where it was not measured."""
+    part = model.evidence.get("misfit_flow_noise", 0.0) if model is not None else 0.0
+    return min(part / (mu - 1.0), 1.0) if mu > 1.0 else 0.0
+
+
 def misfit(estimate: PairEstimate) -> tuple[float, float]:
     """The estimation's misfit (1: the noise) and its excess in noise-only standard
     deviations (NaN when the method has no such statistic)."""
@@ -182,6 +195,15 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             why += ("; or the heating/cooling split, decided from each sensor's slope, "
                     "misclassifies where noise hides the slope (a sensor that turns often with "
                     "a fluctuating gas)")
+        noisy = _flow_noise_share(model, mu)
+        if noisy >= FLOW_NOISE_SHARE and model is not None:
+            why = (f"the flow column {model.column!r} carries noise of "
+                   f"{model.evidence['flow_noise']:.2%} RMS from row to row, which the flow "
+                   f"law passes into the time constants (x m: {model.psi_flow_noise:.2%}) "
+                   f"and which accounts for about "
+                   f"{noisy:.0%} of the misfit; smoothing the column cannot remove it without "
+                   "smearing the flow's own moves: give a cleaner flow signal if there is one "
+                   "(the ECU's modelled exhaust mass flow); otherwise " + why)
         if column is not None:
             # "follow the flow" beside a flow column given: say the column showed none of it
             # (a channel frozen for half a drive cycle: misfit 6610, reported constant)
