@@ -200,10 +200,10 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             why = (f"the flow column {model.column!r} carries noise of "
                    f"{model.evidence['flow_noise']:.2%} RMS from row to row, which the flow "
                    f"law passes into the time constants (x m: {model.psi_flow_noise:.2%}) "
-                   f"and which accounts for about "
-                   f"{noisy:.0%} of the misfit; smoothing the column cannot remove it without "
-                   "smearing the flow's own moves: give a cleaner flow signal if there is one "
-                   "(the ECU's modelled exhaust mass flow); otherwise " + why)
+                   f"and which accounts for about {noisy:.0%} of the misfit beyond the noise; "
+                   "smoothing the column cannot remove it without smearing the flow's own "
+                   "moves: give a cleaner flow signal if there is one (the ECU's modelled "
+                   "exhaust mass flow); otherwise " + why)
         if column is not None:
             # "follow the flow" beside a flow column given: say the column showed none of it
             # (a channel frozen for half a drive cycle: misfit 6610, reported constant)
