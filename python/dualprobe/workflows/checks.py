@@ -120,8 +120,9 @@ def schedule_span(model: FlowModel | None) -> float:
 
 
 # The share of a misfit's excess that a flow column's own noise accounts for
-# (flow_noise.noise_evidence) from which it is named first: a fifth or more (a 3 % noise on the
-# mass flow: about 0.8-1.0 of it; a clean column, under 0.05).
+# (flow_noise.noise_evidence) from which it is named first: a fifth or more (3 % noise on the
+# mass flow: about half of it on a sheathed pair, all of it on unsheathed ones; a clean
+# column's share is nil: its noise is ~1e-7).
 FLOW_NOISE_SHARE = 0.2
 
 
