@@ -5,11 +5,17 @@ lag. The summary must say so beside the bandwidth it states, since ``T_g_std`` c
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
+import pytest
 
 from common_lag_study import worlds
 from dualprobe import simulate as sim
+from dualprobe.estimation.settings import GAP_THRESHOLD
+from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
+from field_independent import record
 from test_field_conditions import ADC, DURATION, NOISE, RATE
 
 
@@ -84,3 +90,42 @@ def test_equal_sheaths_put_the_flow_bound_out_of_reach() -> None:
     # measured D 3.22 K, oracles 1.18 and 0.41 K: D / (o_A + o_B) 2.03; 1.5 is the issue's
     # factor itself, no margin is taken from it
     assert distance > 1.5 * sum(oracles), (distance, oracles)
+
+
+def _with_mass_flow(case: int, **kw: Any) -> Characterisation:
+    rec = record(case, rate=10.0, **kw)
+    return characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                               flow_column="mdot", reconstruction="smoother")
+
+
+def test_near_equal_sheaths_the_law_mis_sizes_are_doubted() -> None:
+    """Near-equal sheaths (0.44 / 0.52 s, 10 Hz, 20 min, the mass flow as the column; sweep
+    case 8301 of field_sweep_independent.py) on the separate generator. The law is within
+    0.34 % RMS of the true schedule in log, yet order 2 sized the sheaths 1.72 / 1.84 s
+    (given the true schedule: 0.44 / 0.53 s) at a misfit of 1.15 times the noise, within the
+    band, and the gas came out 4.77x the oracle with the model called adequate. Split by flow
+    the model misfits the high-flow half (measured 1.56, the low-flow half 0.83: 12.3
+    standard deviations apart), which the check now names."""
+    result = _with_mass_flow(8301, tau=5.45, ratio=3.13, m=0.58, sheaths=(0.44, 0.52))
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law"
+    # the structural evidence threshold of every choice (GAP_THRESHOLD): 12.3 measured
+    assert model.evidence["flow_split_statistic"] > GAP_THRESHOLD
+    assert model.evidence["misfit_high_flow"] > model.evidence["misfit_low_flow"]
+    assert result.model_check is not None and not result.model_check.adequate
+    assert any("low-flow and high-flow halves unalike" in r for r in result.model_check.reasons)
+
+
+@pytest.mark.parametrize("case,kw", [
+    (8300, {"tau": 4.58, "ratio": 2.09, "m": 0.55, "sheaths": (0.41, 0.35),
+            "gains": (0.992, 1.006)}),
+    (62000, {"duration": 900.0, "tau": 5.46, "ratio": 3.5, "m": 0.61, "sheaths": (0.69, 0.85)}),
+])
+def test_resolved_sheaths_fit_both_flow_halves_alike(case: int, kw: dict[str, Any]) -> None:
+    """Sheaths the law sizes right (1.02x the oracle): measured 2.7 and 0.5 standard
+    deviations between the halves (62000 before the level term was found again on the
+    reconstruction: 6.5, which is why the split is judged on the final law)."""
+    result = _with_mass_flow(case, **kw)
+    model = result.estimate.flow_model
+    assert model is not None and model.evidence["flow_split_statistic"] < GAP_THRESHOLD
+    assert result.model_check is not None and result.model_check.adequate

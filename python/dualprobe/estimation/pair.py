@@ -17,6 +17,7 @@ from dualprobe.estimation.engine import STATIC_MODELS
 from dualprobe.estimation.field import FlowModel, RunSvf
 from dualprobe.estimation.flow import FlowSignal, check_flow, evidence
 from dualprobe.estimation.flow_noise import column_noise, noise_evidence
+from dualprobe.estimation.flow_split import split_evidence
 from dualprobe.estimation.flow_timing import shifted, timed_flow_law, unheld
 from dualprobe.estimation.relevel import relevel
 from dualprobe.estimation.result import PairEstimate
@@ -210,6 +211,7 @@ def characterise_pair(
             refresh = int(model.evidence.get("flow_refresh_rows", 1.0))
             model.evidence.update(noise_evidence(a, b, estimate, model,
                                                  column_noise(column, refresh)))
+            model.evidence.update(split_evidence(a, b, estimate, model))
     elif base.status != "ok":
         return base
     conf = confidence(a, b, estimate, model or FlowModel("constant", np.ones(a.size)), signal) \
@@ -268,6 +270,9 @@ def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate
     again = relevel(a, b, estimate, signal, run, gas)
     if again is None or again.flow_model is None:
         return None
+    # the regimes judged on the law as it now is (a sheathed pair's pre-relevel law misfit the
+    # high-flow half at 1.58, the relevelled one at 1.03)
+    again.flow_model.evidence.update(split_evidence(a, b, again, again.flow_model))
     conf = (confidence(a, b, again, again.flow_model, _with_level(again.flow_model, signal))
             if uncertainty else None)
     return dataclasses.replace(again, confidence=conf)
