@@ -7,8 +7,8 @@ schedule in log (separate generator, 0.44 / 0.52 s sheaths, 10 Hz, 20 min, the m
 column) gave sheaths of 1.72 / 1.84 s, the misfit 1.15 times the noise (5 standard deviations:
 within the noise band) and the gas 4.77x the oracle, called adequate. Split by flow, the same
 model misfits the high-flow half at 1.56 and the low-flow half at 0.83 (12 standard deviations
-apart); pairs whose stages are right misfit alike in both (0.93 / 1.07, 0.99 / 1.03,
-1.03 / 1.07: under 1.5 standard deviations apart).
+apart); pairs whose stages are right misfit alike in both (0.93 / 1.13, 0.99 / 1.03,
+1.03 / 1.14: 0.5-2.7 standard deviations apart).
 
 :func:`split_evidence` refits the law with block moments (the engine's, as the jackknife's),
 sorts the blocks by their mean log psi and solves the lower and the upper half of them: the two

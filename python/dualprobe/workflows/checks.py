@@ -221,16 +221,16 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
             f"the identified model does not explain the data: the two sensors' reconstructions "
             f"disagree by {math.sqrt(mu):.3g} times what their noise allows (misfit {mu:.3g} x "
             f"the noise, {statistic:.0f} standard deviations); {why}")
-    split = model.evidence.get("flow_split_statistic", 0.0) if model is not None else 0.0
-    if split > GAP_THRESHOLD and model is not None and not statistic > GAP_THRESHOLD:
+    regimes = model.evidence.get("flow_split_statistic", 0.0) if model is not None else 0.0
+    if regimes > GAP_THRESHOLD and model is not None and not statistic > GAP_THRESHOLD:
         # the whole record's misfit is an average (flow_split: near-equal sheaths sized 3x by a
         # law 0.34 % off, misfit 1.15 overall, 0.83 / 1.56 at low / high flow, 12 apart)
         low, high = (model.evidence[f"misfit_{k}_flow"] for k in ("low", "high"))
         reasons.append(
             f"the flow law explains the record's low-flow and high-flow halves unalike (misfit "
-            f"{low:.3g} and {high:.3g} times the noise, {split:.0f} standard deviations apart): "
-            "the time constants do not follow the flow column as the law has them in one "
-            "regime, and where the sheaths are nearly equal their common part goes wrong "
+            f"{low:.3g} and {high:.3g} times the noise, {regimes:.0f} standard deviations "
+            "apart): the time constants do not follow the flow column as the law has them in "
+            "one regime, and where the sheaths are nearly equal their common part goes wrong "
             "unseen (a pair with 0.44 / 0.52 s sheaths was given 1.72 / 1.84 s, its gas 4.8 "
             "times the error possible)" + _held_flow(model))
     misfits = bool(reasons)
