@@ -26,13 +26,13 @@ def test_column_noise_is_the_relative_white_noise_at_the_refreshes() -> None:
     # 6,000 rows: the MAD of 4th differences has a relative standard error of ~2 %, so 6 %
     # is three of them
     for level in (0.01, 0.03):
-        assert column_noise(_noisy(rec, level, 1)) == pytest.approx(level, rel=0.06)
-    assert column_noise(rec.mass_flow) < 1e-4  # the clean column: its moves are smooth
+        assert column_noise(_noisy(rec, level, 1), rec.ts) == pytest.approx(level, rel=0.06)
+    assert column_noise(rec.mass_flow, rec.ts) < 1e-4  # the clean column: its moves are smooth
     # held for 5 rows: the repeats carry no noise of their own, so it is measured on the
     # refreshes (a tenth of the rows: 6 % -> ~7 % standard error, so 20 %)
     held = np.repeat(_noisy(rec, 0.03, 2)[::5], 5)
-    assert column_noise(held, refresh=5) == pytest.approx(0.03, rel=0.2)
-    assert np.isnan(column_noise(held[:5], refresh=5))
+    assert column_noise(held, rec.ts) == pytest.approx(0.03, rel=0.2)
+    assert np.isnan(column_noise(held[:5], rec.ts))
 
 
 def _gas_z_rms(result: object, rec: Recording) -> float:

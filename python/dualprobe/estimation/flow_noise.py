@@ -30,6 +30,7 @@ import numpy as np
 
 from dualprobe.estimation.field import FlowModel, explains_data, fit_of, scheduled_misfit
 from dualprobe.estimation.result import PairEstimate
+from dualprobe.models.held import MAX_REFRESH, refreshes
 from dualprobe.models.noise import ORDER_ESTIMATION, estimate_noise_std
 
 __all__ = ["column_noise", "noise_evidence"]
@@ -37,15 +38,16 @@ __all__ = ["column_noise", "noise_evidence"]
 _SEED = 20261205  # the added noise is a fixed draw: the same record gives the same evidence
 
 
-def column_noise(values: np.ndarray, refresh: int = 1) -> float:
+def column_noise(values: np.ndarray, ts: float) -> float:
     """White-noise standard deviation of ``log values`` (relative noise of the flow column):
     from its ``ORDER_ESTIMATION``-th differences (the flow is smooth on the rows like the
-    sensors' readings), taken at the column's refreshes when it is held (``refresh`` rows per
-    refresh: the rows where the value changes), because a held value repeats one reading's
-    noise. NaN for a column too short to tell."""
+    sensors' readings), taken at the column's refreshes when a logger held it
+    (:func:`dualprobe.models.held.refreshes`, as ``unhold`` finds them), because a held
+    value repeats one reading's noise. NaN for a column too short to tell."""
     v = np.asarray(values, dtype=float)
+    points, refresh = refreshes(v, ts, MAX_REFRESH)
     if refresh > 1:
-        v = v[np.concatenate([[0], np.flatnonzero(np.diff(v) != 0.0) + 1])]
+        v = v[points]
     if v.size < ORDER_ESTIMATION + 2:
         return math.nan
     return estimate_noise_std(np.log(v), ORDER_ESTIMATION)

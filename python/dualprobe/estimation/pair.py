@@ -208,9 +208,8 @@ def characterise_pair(
                 estimate, characterise_svf(a, b, ts, 1, False, sigma, source, tf,
                                            static_model, schedule=model.psi))
         if signal is not None and model is not None and estimate.status == "ok":
-            refresh = int(model.evidence.get("flow_refresh_rows", 1.0))
             model.evidence.update(noise_evidence(a, b, estimate, model,
-                                                 column_noise(column, refresh)))
+                                                 column_noise(column, ts)))
             model.evidence.update(split_evidence(a, b, estimate, model))
     elif base.status != "ok":
         return base

@@ -22,7 +22,7 @@ import scipy.interpolate
 from dualprobe.models.noise import estimate_noise_std, quantisation_floor
 
 __all__ = ["HELD_SHARE", "MAX_REFRESH", "SENSOR_REFRESH", "held_noise_std", "held_share",
-           "is_held", "unhold"]
+           "is_held", "refreshes", "unhold"]
 
 _REGULAR_SHARE = 0.8  # share of runs within one row of the modal length for a refresh pattern
 _GRID_SHARE = 0.9  # share of the changes on one row of every k for a refresh grid
@@ -38,7 +38,7 @@ SENSOR_REFRESH = 5.0
 HELD_SHARE = 0.1
 
 
-def _refreshes(v: np.ndarray, ts: float, longest: float) -> tuple[np.ndarray, int]:
+def refreshes(v: np.ndarray, ts: float, longest: float) -> tuple[np.ndarray, int]:
     """(the refresh rows, rows per refresh k) of a held signal; (the rows where the value
     changes, 1) when it is not held. Held: the modal run of equal values k >= 2 is at most
     ``longest`` s long, and most runs are within a row of it (a refresh that is no whole
@@ -67,7 +67,7 @@ def _refreshes(v: np.ndarray, ts: float, longest: float) -> tuple[np.ndarray, in
 def unhold(values: np.ndarray, ts: float, *, smooth: bool = False,
            longest: float = MAX_REFRESH) -> tuple[np.ndarray, int]:
     """(the signal with held values interpolated between refresh rows, rows per refresh; 1:
-    not held, values unchanged). It acts only on a regular refresh pattern (:func:`_refreshes`),
+    not held, values unchanged). It acts only on a regular refresh pattern (:func:`refreshes`),
     not on a quantised or piecewise-constant signal, whose runs are irregular. A refresh slower
     than ``longest`` (s: ``MAX_REFRESH``; ``SENSOR_REFRESH`` for a sensor) is no logger's: a
     laboratory flow stepped at regular intervals (every 60 s) keeps its steps. ``smooth``: a
@@ -76,7 +76,7 @@ def unhold(values: np.ndarray, ts: float, *, smooth: bool = False,
     interval squared times the curvature, is tenths of a kelvin at 1 s refreshes on a drive
     cycle."""
     v = np.asarray(values, dtype=float)
-    points, k = _refreshes(v, ts, longest)
+    points, k = refreshes(v, ts, longest)
     if k == 1:
         return v, 1
     rows = np.arange(v.size, dtype=float)
@@ -97,7 +97,7 @@ def held_noise_std(values: np.ndarray, ts: float, order: int,
     the same level), and the rows' own differences, being smooth between refreshes, show
     almost none of it. Never below the quantisation floor of the readings."""
     v = np.asarray(values, dtype=float)
-    points, k = _refreshes(v, ts, longest)
+    points, k = refreshes(v, ts, longest)
     if k == 1:
         return estimate_noise_std(v, order)
     # never below the readings' rounding (q / sqrt(12)): noise-free quantised refreshes can
@@ -128,4 +128,4 @@ def is_held(values: np.ndarray, ts: float, longest: float = MAX_REFRESH) -> bool
     """A logger holds these readings: a regular refresh (:func:`unhold` interpolates it) or an
     irregular one (exact repeats on over ``HELD_SHARE`` of the moving rows: :func:`held_share`)."""
     v = np.asarray(values, dtype=float)
-    return _refreshes(v, ts, longest)[1] > 1 or held_share(v) > HELD_SHARE
+    return refreshes(v, ts, longest)[1] > 1 or held_share(v) > HELD_SHARE
