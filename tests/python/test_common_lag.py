@@ -13,9 +13,11 @@ import pytest
 from common_lag_study import worlds
 from dualprobe import simulate as sim
 from dualprobe.estimation.settings import GAP_THRESHOLD
+from dualprobe.io import EstimationError
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record
+from field_oracle import oracle
 from test_field_conditions import ADC, DURATION, NOISE, RATE
 
 
@@ -98,22 +100,40 @@ def _with_mass_flow(case: int, **kw: Any) -> Characterisation:
                                flow_column="mdot", reconstruction="smoother")
 
 
-def test_near_equal_sheaths_the_law_mis_sizes_are_doubted() -> None:
+_CASE_8301 = {"tau": 5.45, "ratio": 3.13, "m": 0.58, "sheaths": (0.44, 0.52)}
+
+
+def test_near_equal_sheaths_the_law_mis_sizes_fall_back_to_first_order() -> None:
     """Near-equal sheaths (0.44 / 0.52 s, 10 Hz, 20 min, the mass flow as the column; sweep
     case 8301 of field_sweep_independent.py) on the separate generator. The law is within
     0.34 % RMS of the true schedule in log, yet order 2 sized the sheaths 1.72 / 1.84 s
     (given the true schedule: 0.44 / 0.53 s) at a misfit of 1.15 times the noise, within the
     band, and the gas came out 4.77x the oracle with the model called adequate. Split by flow
-    the model misfits the high-flow half (measured 1.56, the low-flow half 0.83: 12.3
-    standard deviations apart), which the check now names."""
-    result = _with_mass_flow(8301, tau=5.45, ratio=3.13, m=0.58, sheaths=(0.44, 0.52))
-    model = result.estimate.flow_model
-    assert model is not None and model.kind == "power_law"
-    # the structural evidence threshold of every choice (GAP_THRESHOLD): 12.3 measured
-    assert model.evidence["flow_split_statistic"] > GAP_THRESHOLD
-    assert model.evidence["misfit_high_flow"] > model.evidence["misfit_low_flow"]
+    that model misfits the high-flow half (1.56, the low-flow half 0.83: 12.3 standard
+    deviations apart): its stages' common part took up the law's error, so the order chosen
+    by evidence is first order (checks.regime_shared_stage), still warned."""
+    rec = record(8301, rate=10.0, **_CASE_8301)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot", reconstruction="smoother")
+    assert [len(taus) for taus in result.estimate.time_constants] == [1, 1]
+    assert "high-flow halves unalike" in result.estimate.identifiability["order_fallback"]
     assert result.model_check is not None and not result.model_check.adequate
-    assert any("low-flow and high-flow halves unalike" in r for r in result.model_check.reasons)
+    assert result.gas_estimate is not None
+    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
+                  sheath1=rec.sheath1, sheath2=rec.sheath2, gases=("rw",)).rmse
+    error = float(np.sqrt(np.mean((result.gas_estimate - rec.gas) ** 2)))
+    # measured 2.49x (order 2: 4.77x); 3.5x fails if order 2 or anything like it comes back,
+    # and near-equal sheaths put the issue's 1.5x out of reach (the tests above)
+    assert error < 3.5 * best, (error, best)
+
+
+def test_asked_for_order_2_with_near_equal_stages_the_law_mis_sizes_is_refused() -> None:
+    """With --order 2 the same pair gets no number (exit 3): its sheaths are not identified
+    (issue 11: the sheath stage identified when present, or a clean exit 3)."""
+    rec = record(8301, rate=10.0, **_CASE_8301)
+    with pytest.raises(EstimationError, match="high-flow halves unalike"):
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                            flow_column="mdot", order=2)
 
 
 @pytest.mark.parametrize("case,kw", [

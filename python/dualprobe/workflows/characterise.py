@@ -18,15 +18,12 @@ from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
 from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
-from dualprobe.workflows.checks import (
-    MISFIT_LIMIT,
-    check_model,
-    describe_stages,
-    residual_ratios,
-    spurious_shared_stage,
-    undetermined_gain,
-    undetermined_stages,
-    unsettled_stages,
+from dualprobe.workflows.checks import MISFIT_LIMIT, check_model, residual_ratios
+from dualprobe.workflows.order_choice import (
+    first_order,
+    first_order_reason,
+    refuse_regimes,
+    regimes_reason,
 )
 from dualprobe.workflows.readings import check_excitation, parse_noise_std, prepare_readings
 from dualprobe.workflows.refusals import (
@@ -185,43 +182,16 @@ def characterise_arrays(
         first = estimate_at(1)
         if first.status == "ok":
             estimate = first
-    unsettled = unsettled_stages(estimate) if requested is None else []
-    shared = spurious_shared_stage(estimate) if requested is None else None
-    gain = undetermined_gain(estimate) if requested is None else None
     if requested is not None:
         refuse_undetermined(estimate, columns)
-    loose = undetermined_stages(estimate) if requested is None else []
-    if (unsettled or shared or gain is not None or loose) and estimate.status == "ok":
-        # order chosen by evidence: a second stage that the filter setting moves (in a model
-        # that claims to explain the data), or one shared by both sensors (misfitting or not
-        # determined), is model error absorbed by a (near-)common factor of the two sensors,
-        # not a resolved stage; first order, and its checks, instead
+    why = first_order_reason(estimate, columns) if requested is None else None
+    if why is not None:
+        # order chosen by evidence: the order-2 stages are model error absorbed (a (near-)
+        # common factor of the two sensors, a stage the filter setting moves), first order and
+        # its checks instead
         first = estimate_at(1)
         if first.status == "ok":
-            ident = dict(first.identifiability)
-            common = (": model error absorbed by a stage nearly common to both sensors, e.g. "
-                      "sheaths that follow the flow with their own exponents, or time "
-                      "constants that also follow the gas temperature")
-            if unsettled:
-                why = ("the second-order fit's second time constant of "
-                       + " and of ".join(f"{columns[i]} ({share:.0%})" for i, share in unsettled)
-                       + " depends on the filter time constant (standard uncertainty from it "
-                       "alone; a resolved stage: under 5 %)" + common)
-            elif shared is not None:
-                why = (f"the second-order fit gave both sensors a time constant of about "
-                       f"{shared[0]:.3g} / {shared[1]:.3g} s, which a pair cannot determine"
-                       + common)
-            elif gain is not None:
-                # a NaN ratio (no finite estimate) is named as such, not printed as "nan"
-                value = f"{gain:.3g}" if math.isfinite(gain) else "no finite value"
-                why = (f"the second-order fit's gain ratio ({value}) is not determined by "
-                       "the data: its second stages and static map trade against each other")
-            else:
-                why = ("the second-order fit's time constants " + describe_stages(loose, columns)
-                       + " are not determined by the data: its stages trade against each "
-                       "other, as when both sensors have nearly equal second stages")
-            ident["order_fallback"] = "order chosen by evidence: first order; " + why
-            estimate = replace(first, identifiability=ident)
+            estimate = first_order(first, why)
     if estimate.status != "ok":
         raise EstimationError(_failure_message(estimate))
     if requested is None and estimate.identifiability.get("shared_poles") and estimate.order == 1:
@@ -231,24 +201,37 @@ def characterise_arrays(
         estimate.identifiability["order_note"] = (
             "order chosen by evidence: first order fits both sensors (a second stage, if any, "
             "is below what the data resolve or common to both)")
-    static = _relative_static(estimate)
-    refuse_opposed(static, columns)
+
+    def levelled(fit: PairEstimate) -> tuple[PairEstimate, tuple[float, float] | None,
+                                                  Reconstruction | None]:
+        """``fit`` with its level term found again on the gas (estimation/relevel.py),
+        whether the gas is asked for or not (one record, one law), its static map, and the
+        gas it was found on where kept."""
+        static = _relative_static(fit)
+        refuse_opposed(static, columns)
+        if not (flow is not None and svf and has_level_term(fit)):
+            return fit, static, None
+        result = _reconstruct(t1, t2, ts, fit, reconstruction or "smoother", hysteresis,
+                              static)
+        again = _relevelled(t1, t2, ts, fit, result.gas, flow, flow_column, sigma,
+                            uncertainty)
+        return (fit, static, result) if again is None else (*again, None)
+
+    estimate, static, result = levelled(estimate)
+    if requested == 2:
+        refuse_regimes(estimate)
+    why = regimes_reason(estimate) if requested is None else None
+    if why is not None:
+        # judged on the law as found again (checks.regime_shared_stage): first order, levelled
+        first = estimate_at(1)
+        if first.status == "ok":
+            estimate, static, result = levelled(first_order(first, why))
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
     doubt: Undetermined | None = None
     resolved: Bandwidth | None = None
     rmse: float | None = None
     residuals = None
-    result: Reconstruction | None = None
-    if flow is not None and svf and has_level_term(estimate):
-        # the level term found again on the gas (estimation/relevel.py), whether the gas is
-        # asked for or not: one record, one law (a smoother's gas where none is asked for)
-        result = _reconstruct(t1, t2, ts, estimate, reconstruction or "smoother", hysteresis,
-                              static)
-        again = _relevelled(t1, t2, ts, estimate, result.gas, flow, flow_column, sigma,
-                            uncertainty)
-        if again is not None:
-            (estimate, static), result = again, None
     if reconstruction is not None:
         if result is None:
             result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
