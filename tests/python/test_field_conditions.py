@@ -24,7 +24,7 @@ from dualprobe.estimation import field
 from dualprobe.estimation.settings import GAP_THRESHOLD
 from dualprobe.io import EstimationError, InputError
 from dualprobe.report.dcm import dcm_text
-from dualprobe.workflows import characterise as characterise_module
+from dualprobe.workflows import order_choice
 from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle
 
@@ -377,7 +377,7 @@ def test_a_gain_ratio_without_a_value_is_named_not_printed_as_nan(
     """An order-2 fit whose gain ratio had no finite value (a 50 Hz pair with a jittered clock)
     fell back to first order with the message "the second-order fit's gain ratio (nan) is not
     determined". The number a user reads is named, not printed as nan."""
-    monkeypatch.setattr(characterise_module, "undetermined_gain", lambda estimate: math.nan)
+    monkeypatch.setattr(order_choice, "undetermined_gain", lambda estimate: math.nan)
     rec = _record(CASES[1])
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.flow,
                                  flow_column="flow", reconstruction="smoother")

@@ -16,6 +16,7 @@ from dualprobe.estimation.engine import Fit
 from dualprobe.io import EstimationError
 from dualprobe.models.held import held_share
 from dualprobe.workflows import characterise as characterise_module
+from dualprobe.workflows import order_choice
 from dualprobe.workflows import readings as readings_module
 from dualprobe.workflows.characterisation import (
     TRACKED_NOISE_STD_NOTE,
@@ -367,8 +368,8 @@ def test_undetermined_stages_fall_back_to_first_order_with_their_reason(
     until its flow delay was found; the detection itself: the asked-for order-2 refusal below),
     on seed 6, whose order-2 fit falls back (above): first order, and the message names the
     stage and its uncertainty."""
-    monkeypatch.setattr(characterise_module, "spurious_shared_stage", lambda estimate: None)
-    monkeypatch.setattr(characterise_module, "undetermined_stages",
+    monkeypatch.setattr(order_choice, "spurious_shared_stage", lambda estimate: None)
+    monkeypatch.setattr(order_choice, "undetermined_stages",
                         lambda estimate: [(0, 61.6, 1.68)] if estimate.order == 2 else [])
     rec = record(6, duration=600.0, rate=50.0, tau=2.0, ratio=4.0, m=0.35, noise=0.1)
     result = _with_mass_flow(rec)

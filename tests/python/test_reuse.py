@@ -12,6 +12,7 @@ from dualprobe import simulate as sim
 from dualprobe.estimation import tracking
 from dualprobe.estimation.reuse import Kept, reused
 from dualprobe.workflows import characterise as characterise_module
+from dualprobe.workflows import order_choice
 from dualprobe.workflows.characterise import characterise_arrays
 
 calls: list[tuple[object, ...]] = []
@@ -123,7 +124,7 @@ def test_a_first_order_fallback_reuses_the_first_tries_steps_with_the_same_resul
         sim.FieldSensor(10.0, 0.45, 0.0, noise_std=0.05), sample_rate=10.0, quantisation=0.02,
         rng=rng)
     # the fallback forced (a second stage "not determined"), as a refused order-2 fit has it
-    monkeypatch.setattr(characterise_module, "undetermined_stages",
+    monkeypatch.setattr(order_choice, "undetermined_stages",
                         lambda estimate: [(0, 61.6, 1.68)])
     stores: list[Kept] = []
 
