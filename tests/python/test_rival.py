@@ -72,3 +72,15 @@ def test_the_worst_window_is_found_and_judged_against_the_stated_uncertainty() -
     assert not undetermined(gas, rival, np.full(rows, 2.0), ts).doubtful  # type: ignore[union-attr]
     # a gas with no finite row has nothing to judge
     assert undetermined(np.full(rows, np.nan), rival, std, ts) is None
+
+
+def test_a_one_sigma_move_counts_all_of_its_distance() -> None:
+    """The common part of near-equal stages (workflows/common_part.py) is judged by the gas one
+    standard uncertainty away: that whole distance is uncertainty, not half of it."""
+    ts = 0.1
+    rows = round(3 * WINDOW / ts)
+    gas, moved, std = np.zeros(rows), np.full(rows, 1.2), np.full(rows, 0.5)
+    found = undetermined(gas, moved, std, ts, cause="common part")
+    assert found is not None and found.kelvin == 1.2 and found.ratio == 1.2 / 0.5
+    assert found.doubtful and "common part" in found.reason()
+    assert undetermined(gas, moved, std, ts).kelvin == 0.6  # type: ignore[union-attr]

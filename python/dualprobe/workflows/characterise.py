@@ -19,6 +19,7 @@ from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import MISFIT_LIMIT, check_model, residual_ratios
+from dualprobe.workflows.common_part import common_part_doubt
 from dualprobe.workflows.order_choice import (
     first_order,
     first_order_reason,
@@ -237,6 +238,10 @@ def characterise_arrays(
             result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
         gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
         doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, gas, gas_std)
+        if doubt is None and gas_std is not None:
+            doubt = common_part_doubt(
+                estimate, gas, gas_std, ts, lambda moved: _reconstruct(
+                    t1, t2, ts, moved, reconstruction, hysteresis, static).gas)
         if doubt is not None and gas_std is not None:
             gas_std = np.hypot(gas_std, doubt.spread)
         residuals = _residuals(result, t1, t2, static)

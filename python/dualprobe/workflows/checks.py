@@ -43,7 +43,7 @@ from dualprobe.workflows.undetermined import Undetermined
 
 __all__ = ["MISFIT_LIMIT", "PSI_NOISE_LIMIT", "SPAN_LIMIT", "ModelCheck", "absorbs_misfit",
            "check_model", "describe_stages", "misfit", "regime_shared_stage",
-           "residual_ratios", "schedule_span",
+           "residual_ratios", "schedule_span", "shared_time_constant",
            "spurious_shared_stage", "undetermined_gain", "undetermined_stages",
            "unsettled_stages"]
 
@@ -53,7 +53,7 @@ _TRACKED_DOUBT = ("the per-row time constants and the reconstruction may be far 
                   "the recording has one")
 
 
-def _shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
+def shared_time_constant(taus: tuple[tuple[float, ...], tuple[float, ...]]
                           ) -> tuple[float, float] | None:
     """The closest pair of time constants, one per sensor, when both sensors are of order 2
     and the two lie within ``SHARED_FACTOR`` of each other (None otherwise)."""
@@ -326,7 +326,7 @@ def spurious_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
     1.03x and 1.14x the oracle: what the evidence supports."""
     if estimate.order != 2:
         return None
-    shared = _shared_time_constant(estimate.time_constants)
+    shared = shared_time_constant(estimate.time_constants)
     if shared is None:
         return None
     _, statistic = misfit(estimate)
@@ -357,7 +357,7 @@ def regime_shared_stage(estimate: PairEstimate) -> tuple[float, float] | None:
     model = estimate.flow_model
     if estimate.order != 2 or model is None:
         return None
-    shared = _shared_time_constant(estimate.time_constants)
+    shared = shared_time_constant(estimate.time_constants)
     regimes = model.evidence.get("flow_split_statistic", 0.0)
     return shared if shared is not None and regimes > GAP_THRESHOLD else None
 
@@ -373,10 +373,10 @@ _SHEATH_SHARE = 0.5
 
 def absorbs_misfit(taus: tuple[tuple[float, ...], tuple[float, ...]]
                     ) -> tuple[float, float] | None:
-    """The shared time constants (:func:`_shared_time_constant`) that a misfitting model may
+    """The shared time constants (:func:`shared_time_constant`) that a misfitting model may
     have used to absorb its error: all but a pair of sheaths, i.e. each sensor's second (fast)
     stage, short against the faster sensor's dominant time constant (``_SHEATH_SHARE``)."""
-    shared = _shared_time_constant(taus)
+    shared = shared_time_constant(taus)
     if shared is None:
         return None
     sheaths = (all(len(t) == 2 and shared[i] == t[1] for i, t in enumerate(taus))

@@ -6,7 +6,9 @@ true, so that half-difference is part of the gas's uncertainty (added to ``T_g_s
 quadrature), and where it exceeds the uncertainty stated without it over a stretch of the
 record (its RMS over the posterior's RMS in a ``WINDOW``-long stretch above ``LIMIT``: the rival's
 gas beyond three of the posterior's standard deviations there) the model check doubts the
-result.
+result. The same judges the common part of two near-equal second stages
+(:mod:`dualprobe.workflows.common_part`), whose rival is the gas with that part one standard
+uncertainty shorter: a one-sigma move, so all of its distance is uncertainty.
 """
 
 from __future__ import annotations
@@ -41,12 +43,24 @@ class Undetermined:
     ratio: float
     kelvin: float
     start: float
+    # "schedule": a rival schedule's gas (spread: half the distance); "common part": the gas
+    # with near-equal stages' common part one standard uncertainty shorter (spread: all of it)
+    cause: str = "schedule"
 
     @property
     def doubtful(self) -> bool:
         return self.ratio > LIMIT
 
     def reason(self) -> str:
+        if self.cause == "common part":
+            return (
+                f"the second stages' common part is not determined well enough for this gas: "
+                f"the two sensors' nearly equal stages cancel from their cross-relation but for "
+                f"the flow law's shape, and one standard uncertainty of their common part "
+                f"moves the gas by {self.kelvin:.3g} K RMS over {WINDOW:g} s from t = "
+                f"{self.start:.0f} s, {self.ratio:.2g} times the uncertainty stated without it "
+                "(T_g_std includes it); sheaths this alike may be sized several times too "
+                "long: compare with --order 1")
         return (
             f"the tracked time constants are not determined by these data: another schedule "
             f"explains both signals as well and gives a gas {2.0 * self.kelvin:.3g} K RMS away "
@@ -57,12 +71,14 @@ class Undetermined:
             "to determine them")
 
 
-def undetermined(gas: np.ndarray, rival: np.ndarray, std: np.ndarray, ts: float
-                 ) -> Undetermined | None:
+def undetermined(gas: np.ndarray, rival: np.ndarray, std: np.ndarray, ts: float,
+                 cause: str = "schedule") -> Undetermined | None:
     """The spread between ``gas`` and the ``rival``'s gas, judged against ``std`` (the
     posterior's standard deviation without it), in windows of ``WINDOW`` (the whole record
-    when shorter); None where either gas has no finite row."""
-    spread = 0.5 * np.abs(np.asarray(gas, float) - np.asarray(rival, float))
+    when shorter); None where either gas has no finite row. For a ``cause`` of "common part"
+    the rival is the gas one standard uncertainty away, so the spread is all of the distance."""
+    share = 1.0 if cause == "common part" else 0.5
+    spread = share * np.abs(np.asarray(gas, float) - np.asarray(rival, float))
     valid = np.isfinite(spread) & np.isfinite(std) & (std > 0.0)
     if not np.any(valid):
         return None
@@ -79,4 +95,4 @@ def undetermined(gas: np.ndarray, rival: np.ndarray, std: np.ndarray, ts: float
     if worst[0] < 0.0:
         return None
     return Undetermined(np.where(np.isfinite(spread), spread, 0.0), worst[0], worst[1],
-                        worst[2] * ts)
+                        worst[2] * ts, cause)
