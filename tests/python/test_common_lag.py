@@ -5,6 +5,8 @@ lag. The summary must say so beside the bandwidth it states, since ``T_g_std`` c
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -12,8 +14,9 @@ import pytest
 
 from common_lag_study import worlds
 from dualprobe import simulate as sim
+from dualprobe.cli import main
 from dualprobe.estimation.settings import GAP_THRESHOLD
-from dualprobe.io import EstimationError
+from dualprobe.io import EstimationError, write_columns
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record
@@ -154,6 +157,20 @@ def test_near_equal_sheaths_sized_long_where_the_split_cannot_see_it_are_doubted
     # measured 2.06 (7.66 without the move); 3 is the sweeps' mark of an overconfident result
     # (logger_sweep.py: 1.8-2.2 where the gas beyond the bandwidth is the only thing uncovered)
     assert z < 3.0, z
+
+
+def test_the_command_line_judges_the_common_part_without_being_asked_for_the_gas(
+        tmp_path: Path) -> None:
+    """The same pair through the command line with --json only: one verdict per record, not
+    "adequate" without --output and doubted with it (the model check needs the gas)."""
+    rec = record(20107, rate=10.0, tau=4.03, ratio=3.09, m=0.37, sheaths=(0.42, 0.45))
+    data, doc = tmp_path / "pair.csv", tmp_path / "out.json"
+    write_columns(data, {"t": rec.t, "T1": rec.t1, "T2": rec.t2, "mdot": rec.mass_flow})
+    assert main(["characterise", str(data), "--sensor1", "T1", "--sensor2", "T2", "--flow",
+                 "mdot", "--json", str(doc)]) == 0
+    check = json.loads(doc.read_text())["model_check"]
+    assert not check["adequate"]
+    assert any("common part is not determined" in r for r in check["reasons"])
 
 
 @pytest.mark.parametrize("case,kw", [

@@ -177,8 +177,11 @@ def run(args: argparse.Namespace) -> int:
         report = Path(args.report)
         if report.exists() and not report.is_dir():
             raise UsageError(f"--report {report}: exists and is not a directory")
-    need_reconstruction = (args.output is not None or args.reference is not None
-                           or args.report is not None)
+    # the SVF path's model check judges the gas too (a rival schedule's, a near-equal pair's
+    # common part: workflows/undetermined.py), so it runs whether the gas is written or not:
+    # one verdict per record, not one with --output and another without
+    need_reconstruction = (args.method in ("auto", "svf") or args.output is not None
+                           or args.reference is not None or args.report is not None)
     result = characterise_file(
         args.data,
         time=args.time or None,
