@@ -5,7 +5,7 @@ following the flow, only the flow law's shape fixes their common part, and a law
 0.3 % in log can size 0.42 / 0.45 s sheaths as 1.78 / 1.86 s while the model explains both
 signals (misfit 1.13, the flow halves 2.9 standard deviations apart) and the gas comes out
 8.3x the oracle's error with ``T_g_std`` covering a sixth of it. Their standard uncertainties
-(the jackknife's, 22 % there; 2-5 % where such sheaths are resolved) say how far the data let
+(the jackknife's, 22 % there; 3-7 % where such sheaths are resolved) say how far the data let
 that part move: :func:`common_part_doubt` reconstructs with both stages one standard
 uncertainty shorter (towards the lag the pair cannot see, never into a faster inverse) and
 takes the gas's move as part of its uncertainty (:mod:`dualprobe.workflows.undetermined`).
