@@ -14,10 +14,15 @@ uncertainty shorter: a one-sigma move, so all of its distance is uncertainty.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 
-__all__ = ["LIMIT", "WINDOW", "Undetermined", "undetermined"]
+__all__ = ["LIMIT", "WINDOW", "Cause", "Undetermined", "undetermined"]
+
+# "schedule": a rival schedule's gas (spread: half the distance); "common part": the gas with
+# near-equal stages' common part one standard uncertainty shorter (spread: all of it)
+Cause = Literal["schedule", "common part"]
 
 # s: a manoeuvre's length on a drive cycle (accelerations and cruises of 4-80 s), so that one
 # stretch the data do not determine is not averaged away over a 20-min record, while the rows'
@@ -43,9 +48,7 @@ class Undetermined:
     ratio: float
     kelvin: float
     start: float
-    # "schedule": a rival schedule's gas (spread: half the distance); "common part": the gas
-    # with near-equal stages' common part one standard uncertainty shorter (spread: all of it)
-    cause: str = "schedule"
+    cause: Cause = "schedule"
 
     @property
     def doubtful(self) -> bool:
@@ -54,10 +57,10 @@ class Undetermined:
     def reason(self) -> str:
         if self.cause == "common part":
             return (
-                f"the second stages' common part is not determined well enough for this gas: "
-                f"the two sensors' nearly equal stages cancel from their cross-relation but for "
-                f"the flow law's shape, and one standard uncertainty of their common part "
-                f"moves the gas by {self.kelvin:.3g} K RMS over {WINDOW:g} s from t = "
+                "the second stages' common part is not determined well enough for this gas: "
+                "the two sensors' nearly equal stages nearly cancel from their cross-relation, "
+                "so the data fix their common part only loosely, and one standard uncertainty "
+                f"of it moves the gas by {self.kelvin:.3g} K RMS over {WINDOW:g} s from t = "
                 f"{self.start:.0f} s, {self.ratio:.2g} times the uncertainty stated without it "
                 "(T_g_std includes it); sheaths this alike may be sized several times too "
                 "long: compare with --order 1")
@@ -72,7 +75,7 @@ class Undetermined:
 
 
 def undetermined(gas: np.ndarray, rival: np.ndarray, std: np.ndarray, ts: float,
-                 cause: str = "schedule") -> Undetermined | None:
+                 cause: Cause = "schedule") -> Undetermined | None:
     """The spread between ``gas`` and the ``rival``'s gas, judged against ``std`` (the
     posterior's standard deviation without it), in windows of ``WINDOW`` (the whole record
     when shorter); None where either gas has no finite row. For a ``cause`` of "common part"
