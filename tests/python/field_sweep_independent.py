@@ -1,7 +1,7 @@
 """Random pairs of the SEPARATE generator (field_independent.py), characterised without the
 flow (or with the mass flow column an ECU has: ``flow``): a study, not a test.
 
-    python tests/python/field_sweep_independent.py SEED COUNT [flow]
+    python tests/python/field_sweep_independent.py SEED COUNT [flow | velocity]
 
 Each case draws a fast element of 3-8 s, a ratio of 2-4, m 0.3-0.7, 10 or 20 Hz, sheaths of
 0.2-0.8 s on both sensors (on one only with probability 0.3) and gains 0.97-1.03 on half (20
@@ -25,7 +25,10 @@ from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle, worst_factor
 
 
-def sweep(seed: int, count: int, with_flow: bool = False) -> None:
+def sweep(seed: int, count: int, column: str = "") -> None:
+    """``column``: "" (none), "flow" (the mass flow) or "velocity" (mass flow x gas: what the
+    time constants follow, eq. 1, as a velocity model would give it)."""
+    with_flow = bool(column)
     rng = np.random.default_rng(seed)
     for k in range(count):
         tau = round(float(rng.uniform(3, 8)), 2)
@@ -54,8 +57,8 @@ def sweep(seed: int, count: int, with_flow: bool = False) -> None:
         try:
             result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t,
                                          reconstruction="smoother",
-                                         flow=rec.mass_flow if with_flow else None,
-                                         flow_column="mdot" if with_flow else None)
+                                         flow=_column(rec, gains[0], column),
+                                         flow_column=column or None)
         except EstimationError as exc:
             print("REFUSED", label, str(exc)[:100], flush=True)
             continue
@@ -83,5 +86,11 @@ def sweep(seed: int, count: int, with_flow: bool = False) -> None:
               f"{time.perf_counter() - start:.0f} s", flush=True)
 
 
+def _column(rec: fi.Recording, gain: float, column: str) -> np.ndarray | None:
+    if column == "velocity":
+        return rec.mass_flow * rec.gas / gain  # rec.gas is in sensor 1's calibration
+    return rec.mass_flow if column == "flow" else None
+
+
 if __name__ == "__main__":
-    sweep(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3:] == ["flow"])
+    sweep(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3] if len(sys.argv) > 3 else "")
