@@ -1,7 +1,9 @@
 """Near-equal sheaths with the mass flow on the SEPARATE generator (field_independent.py): a
 study, not a test.
 
-    python tests/python/near_equal_sweep.py SEED COUNT
+    python tests/python/near_equal_sweep.py SEED COUNT [velocity]
+
+(``velocity``: the gas velocity, mass flow x gas, as the column instead of the mass flow.)
 
 Each case draws a sheath of 0.2-0.8 s and the other within 15 % of it, a fast element of
 3-8 s, a ratio of 2-4, m 0.3-0.7 (10 Hz, 20 min, the generator's noise). Near-equal sheaths
@@ -23,7 +25,7 @@ from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import oracle
 
 
-def sweep(seed: int, count: int) -> None:
+def sweep(seed: int, count: int, velocity: bool = False) -> None:
     rng = np.random.default_rng(seed)
     for k in range(count):
         s, u = float(rng.uniform(0.2, 0.8)), float(rng.uniform(-0.15, 0.15))
@@ -38,8 +40,10 @@ def sweep(seed: int, count: int) -> None:
         label = f"{case}: sheaths {sheaths} tau {tau} ratio {ratio} m {m}"
         try:
             result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t,
-                                         reconstruction="smoother", flow=rec.mass_flow,
-                                         flow_column="mdot")
+                                         reconstruction="smoother",
+                                         flow=rec.mass_flow * rec.gas if velocity
+                                         else rec.mass_flow,
+                                         flow_column="velocity" if velocity else "mdot")
         except EstimationError as exc:
             print("REFUSED", label, str(exc)[:100], flush=True)
             continue
@@ -54,4 +58,4 @@ def sweep(seed: int, count: int) -> None:
 
 
 if __name__ == "__main__":
-    sweep(int(sys.argv[1]), int(sys.argv[2]))
+    sweep(int(sys.argv[1]), int(sys.argv[2]), sys.argv[3:] == ["velocity"])

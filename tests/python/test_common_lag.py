@@ -186,3 +186,26 @@ def test_resolved_sheaths_fit_both_flow_halves_alike(case: int, kw: dict[str, An
     model = result.estimate.flow_model
     assert model is not None and model.evidence["flow_split_statistic"] < GAP_THRESHOLD
     assert result.model_check is not None and result.model_check.adequate
+
+
+@pytest.mark.parametrize("case,kw", [
+    (10405, {"tau": 5.37, "ratio": 2.24, "m": 0.5, "sheaths": (0.65, 0.66),
+             "gains": (1.02, 1.009)}),
+    (10403, {"rate": 20.0, "tau": 7.12, "ratio": 3.74, "m": 0.61, "sheaths": (0.43, 0.38),
+             "gains": (1.002, 1.022)}),
+])
+def test_a_lone_faint_stage_is_read_as_near_equal_sheaths(case: int, kw: dict[str, Any]) -> None:
+    """Near-equal sheaths with the gas velocity as the column (field_sweep_independent.py 104
+    velocity; no gas-level term to hint at a common stage): the pair came out with one second
+    stage of 0.009 s (10 Hz) or 0.056 s (20 Hz) on one sensor, the sheaths' difference, the
+    signals explained and the gas 5.03x / 2.08x the oracle, called adequate. A lone stage that
+    short is no sheath (checks.FAINT_STAGE): the result is doubted, the signals still fit."""
+    gains = kw["gains"]
+    rec = record(case, **{"rate": 10.0, **kw})
+    velocity = rec.mass_flow * rec.gas / gains[0]  # rec.gas is in sensor 1's calibration
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=velocity,
+                                 flow_column="velocity", reconstruction="smoother")
+    assert sorted(len(taus) for taus in result.estimate.time_constants) == [1, 2]
+    check = result.model_check
+    assert check is not None and not check.adequate and check.fits
+    assert any("nearly equal sheaths on both sensors" in r for r in check.reasons)
