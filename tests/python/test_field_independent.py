@@ -671,6 +671,30 @@ def test_a_decided_unit_power_law_does_not_keep_the_gain_mismatch_in_its_exponen
     assert result.model_check is not None and result.model_check.adequate
 
 
+@pytest.mark.parametrize("column", ["velocity", "mdot"])
+def test_a_law_the_data_need_is_kept_though_the_flow_rarely_leaves_one_level(column: str,
+                                                                             ) -> None:
+    """300 s at 2 Hz, 0.15 K noise, m 0.67, gains 0.991 / 0.98 (logger_sweep.py 120 velocity,
+    case 120003): the flow stays within 3 % over 90 % of the record, so the power law changes
+    the time constants by 2.3 % over the 5-95 % flow range, under the 5 % a law must change them
+    by; yet it takes the misfit from 4.71 to 0.98 times the noise (42 standard deviations). It
+    was reported "constant", misfitting, with a warning that the column showed no dependence
+    (the gas 2.8x the oracle). A law the data need is now kept: measured 1.27x with the
+    velocity, 1.31x with the mass flow, adequate."""
+    gains = (0.991, 0.98)
+    rec = record(120003, rate=2.0, duration=300.0, tau=4.97, ratio=1.93, m=0.67,
+                 sheaths=(0.22, 0.31), gains=gains, noise=0.15, adc=0.0)
+    flow = rec.mass_flow * rec.gas / gains[0] if column == "velocity" else rec.mass_flow
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=flow,
+                                 flow_column=column, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "power_law"
+    assert model.evidence["power_law_change"] < 0.05  # the case: below the practical size
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)
+    assert result.model_check is not None and result.model_check.adequate
+
+
 def test_spikes_are_replaced_and_noted() -> None:
     """Pickup spikes on the leads (three of 30 K on T_m1, a 3-row dropout to 0 K on T_m2) in
     a 10 Hz drive cycle with the flow: left in, they took the gas from 1.07x the oracle to

@@ -162,8 +162,7 @@ def flow_law(
                  power_law_statistic=flow.evidence(base_fit.misfit, mu_power, n_eff),
                  power_law_change=signal.change(m))
     decide = base  # the first-order pair the law and the level term are decided on
-    decided = (stats["power_law_statistic"] > GAP_THRESHOLD
-               and stats["power_law_change"] > flow.PRACTICAL_CHANGE)
+    decided = flow.decided(signal, m, base_fit.misfit, mu_power, n_eff)
     affine = _affine_power_law(t1, t2, base, signal, n_eff,
                                against=mu_power if decided else base_fit.misfit)
     if affine is not None:
@@ -266,8 +265,7 @@ def _affine_power_law(
     if not math.isfinite(m):
         return None
     mu = exponent_misfit(t1, t2, affine, signal)(m)
-    if not (flow.evidence(against, mu, n_eff) > GAP_THRESHOLD
-            and signal.change(m) > flow.PRACTICAL_CHANGE):
+    if not flow.decided(signal, m, against, mu, n_eff):
         return None
     details = {**base.details, "fit": affine}
     return dataclasses.replace(base, time_constants=affine.time_constants,
@@ -292,7 +290,7 @@ def _one_sided_power_law(
         return None
     rich = exponent_misfit(t1, t2, fit, signal, one_sided=True)(m)
     statistic = flow.evidence(level.one_sided_misfit(fit), rich, n_eff)
-    if not (statistic > GAP_THRESHOLD and signal.change(m) > flow.PRACTICAL_CHANGE):
+    if not flow.decided(signal, m, level.one_sided_misfit(fit), rich, n_eff):
         return None
     stats = {"exponent_first": m, "power_law_statistic": statistic,
              "power_law_change": signal.change(m), "power_law_one_sided": 1.0}
