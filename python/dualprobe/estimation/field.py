@@ -166,9 +166,8 @@ def flow_law(
     affine = _affine_power_law(t1, t2, base, signal, n_eff,
                                against=mu_power if decided else base_fit.misfit)
     if affine is not None:
-        decide, m, profile = affine
+        decide, m, profile, mu_power = affine
         base_fit = fit_of(decide)
-        mu_power = exponent_misfit(t1, t2, base_fit, signal)(m)
         stats.update(exponent_first=m, misfit_power_law=mu_power, affine_power_law=1.0,
                      power_law_statistic=flow.evidence(stats["misfit_constant"], mu_power,
                                                        n_eff))
@@ -241,11 +240,11 @@ def flow_law(
 def _affine_power_law(
     t1: np.ndarray, t2: np.ndarray, base: PairEstimate, signal: flow.FlowSignal, n_eff: float,
     against: float,
-) -> tuple[PairEstimate, float, np.ndarray] | None:
+) -> tuple[PairEstimate, float, np.ndarray, float] | None:
     """The power law with the affine static model, when the constant schedule chose unit
     gains and the affine law's misfit lies significantly below ``against`` (the constant
     schedule's misfit where the unit power law was not decided, the unit law's where it was):
-    (the first-order pair with the affine fit, m, the grid's misfits) or None.
+    (the first-order pair with the affine fit, m, the grid's misfits, the misfit at m) or None.
     Why: at a constant schedule both static models misfit by the unmodelled flow, so a gain
     mismatch hardly counts there (gains 1.018 / 1.005, m 0.64: unit gains 156 577 times the
     noise, chosen); the unit power law then took 98 000, not decided, and the pair was
@@ -269,7 +268,7 @@ def _affine_power_law(
         return None
     details = {**base.details, "fit": affine}
     return dataclasses.replace(base, time_constants=affine.time_constants,
-                               details=details), m, profile
+                               details=details), m, profile, mu
 
 
 def _one_sided_power_law(
@@ -289,9 +288,10 @@ def _one_sided_power_law(
     if not math.isfinite(m):
         return None
     rich = exponent_misfit(t1, t2, fit, signal, one_sided=True)(m)
-    statistic = flow.evidence(level.one_sided_misfit(fit), rich, n_eff)
-    if not flow.decided(signal, m, level.one_sided_misfit(fit), rich, n_eff):
+    simple = level.one_sided_misfit(fit)
+    if not flow.decided(signal, m, simple, rich, n_eff):
         return None
+    statistic = flow.evidence(simple, rich, n_eff)
     stats = {"exponent_first": m, "power_law_statistic": statistic,
              "power_law_change": signal.change(m), "power_law_one_sided": 1.0}
     return m, profile, stats
