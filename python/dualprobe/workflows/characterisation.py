@@ -286,9 +286,10 @@ class Characterisation:
         fallback = est.identifiability.get("order_fallback")
         if fallback:
             lines.append(f"  note: {fallback}")
-        message = est.identifiability.get("message")
-        if message:
-            lines.append(f"  note: {' '.join(str(message).split())}")
+        for key in ("message", "common_lag"):
+            message = est.identifiability.get(key)
+            if message:
+                lines.append(f"  note: {' '.join(str(message).split())}")
         if conf is not None:
             lines.extend(f"  note: {note}" for note in conf.notes)
         if est.details.get("static_model") == "affine":

@@ -21,6 +21,7 @@ from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import MISFIT_LIMIT, check_model, residual_ratios
 from dualprobe.workflows.common_part import common_part_doubt
 from dualprobe.workflows.order_choice import (
+    common_lag_note,
     first_order,
     first_order_reason,
     refuse_regimes,
@@ -197,11 +198,9 @@ def characterise_arrays(
         raise EstimationError(_failure_message(estimate))
     if requested is None and estimate.identifiability.get("shared_poles") and estimate.order == 1:
         # order chosen by evidence: a degenerate order-2 fit is the expected outcome for a
-        # first-order pair, not news (the shared-pole wording is for an asked-for order 2)
+        # first-order pair, not news (the shared-pole wording is for an asked-for order 2;
+        # what first order leaves open: common_lag_note)
         estimate.identifiability.pop("message", None)
-        estimate.identifiability["order_note"] = (
-            "order chosen by evidence: first order fits both sensors (a second stage, if any, "
-            "is below what the data resolve or common to both)")
 
     def levelled(fit: PairEstimate) -> tuple[PairEstimate, tuple[float, float] | None,
                                                   Reconstruction | None]:
@@ -227,6 +226,9 @@ def characterise_arrays(
         first = estimate_at(1)
         if first.status == "ok":
             estimate, static, result = levelled(first_order(first, why))
+    common_lag = common_lag_note(estimate)
+    if common_lag is not None:
+        estimate.identifiability["common_lag"] = common_lag
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
     doubt: Undetermined | None = None
@@ -321,7 +323,7 @@ def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimat
     if again is None or (static is not None and not static[0] > 0.0):
         return None  # (a sign-blind gain that turned is no better fit: refuse_opposed)
     ident = dict(again.identifiability)
-    for key in ("order_fallback", "order_note"):
+    for key in ("order_fallback",):
         if key in estimate.identifiability:
             ident[key] = estimate.identifiability[key]
     if "message" not in estimate.identifiability:
