@@ -241,6 +241,37 @@ def test_a_first_order_pair_says_its_time_constants_leave_a_common_lag_open(
         # unsheathed: the elements themselves (measured within 0.5 %; the jackknife's +- is 2 %)
         assert max(abs(s) / t for s, t in zip(short, totals, strict=True)) < 0.05, short
     note = result.estimate.identifiability["common_lag"]
-    assert f"({slow - fast:.3g} s), not a lag common to both sensors" in note
+    assert f"({slow - fast:.3g} s), never a lag common to both sensors" in note
     summary = result.summary()
-    assert "note: first order: the two signals fix the time constants' difference" in summary
+    assert "note: first order: two signals determine at most the time constants'" in summary
+
+
+def test_with_the_velocity_a_first_order_pair_is_short_by_one_common_lag() -> None:
+    """logger_sweep.py's short draws, seed 131, case 2 (120 s at 50 Hz, 2.13 / 10.7 s
+    elements behind 0.35 / 0.36 s sheaths, m 0.63, sensor 2 held for 3 rows, 10 ms jitter):
+    with the gas velocity, a first-order power law whose per-row time constants are 0.39 /
+    0.42 s short of the totals (common to 0.03 s, as the note says); without it, tracked, the
+    totals over the estimates were 1.28 / 1.13 and the note names the schedule's error."""
+    kw = {"duration": 120.0, "rate": 50.0, "tau": 2.13, "ratio": 5.0, "m": 0.63,
+          "sheaths": (0.35, 0.36), "gains": (1.01, 1.022), "noise": 0.05, "adc": 0.0,
+          "jitter": 0.01, "hold": 3}
+    rec = record(131002, **kw)  # type: ignore[arg-type]
+    velocity = rec.mass_flow * rec.gas / 1.01  # rec.gas is in sensor 1's calibration
+    for flow in (velocity, None):
+        result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction=None,
+                                     flow=flow, flow_column="velocity" if flow is not None
+                                     else None)
+        model = result.estimate.flow_model
+        assert result.estimate.order == 1 and model is not None
+        note = result.estimate.identifiability["common_lag"]
+        assert ("tracked without the flow" in note) == (flow is None)
+        if flow is None:
+            assert model.kind == "tracked"
+            continue
+        assert model.kind == "power_law"
+        short = [float(np.median(tau + sheath - taus[0] * model.psi)) for tau, sheath, taus in
+                 ((rec.tau1, rec.sheath1, result.estimate.time_constants[0]),
+                  (rec.tau2, rec.sheath2, result.estimate.time_constants[1]))]
+        # the sheaths' size (delta = 0.36 s by the expansion) common to both; the difference
+        # is the expansion's rest and the law's error (measured 0.03 s; 0.1 s, a quarter)
+        assert min(short) > 0.25 and abs(short[0] - short[1]) < 0.1, short
