@@ -74,23 +74,23 @@ def regimes_reason(estimate: PairEstimate) -> str | None:
 
 
 def common_lag_note(estimate: PairEstimate) -> str | None:
-    """What a first-order pair's time constants are (None for order 2): two signals fix their
-    difference, not a lag common to both sensors. Sheaths on both sensors that the data do not
-    resolve act, to second order in the frequency, as such a common lag: the first-order fit
-    gives both sensors' total lags (the sum of each one's stages) short by one amount,
-    delta = (b s2 - a s1) / (b + s2 - a - s1) for elements a, b behind sheaths s1, s2. Measured
-    on the separate generator (120 s at idle, 50 Hz, 0.71 / 2.0 s elements): sheaths of 0.23 /
-    0.5 s gave 0.335 / 1.874 s (both totals 0.61 / 0.63 s short), 0.15 / 0.8 s gave 0.12 / 2.10
-    s (0.74 / 0.70 s short), 0.3 / 0.3 s the elements, each within 1.2 times the noise; on four
-    sheathed drive-cycle pairs with the gas velocity, 0.53 / 0.50, 0.39 / 0.42, 0.56 / 0.57 and
-    0.47 / 0.47 s short. Tracked without the flow the schedule's error adds (the same pairs:
-    total over estimate 1.86 / 1.63, 2.16 / 2.05)."""
+    """What a first-order pair's time constants are (None for order 2): two signals determine at
+    most their difference, never a lag common to both sensors. Sheaths on both sensors that the
+    data do not resolve act, to second order in the frequency, as such a common lag: the
+    first-order fit gives both sensors' total lags (the sum of each one's stages) short by one
+    amount, delta = (b s2 - a s1) / (b + s2 - a - s1) for elements a, b behind sheaths s1, s2.
+    Measured on the separate generator (120 s at idle, 50 Hz, 0.71 / 2.0 s elements): sheaths of
+    0.23 / 0.5 s gave 0.335 / 1.874 s (both totals 0.61 / 0.63 s short), 0.15 / 0.8 s gave 0.12
+    / 2.10 s (0.74 / 0.70 s short), 0.3 / 0.3 s the elements, each within 1.2 times the noise;
+    on four sheathed drive-cycle pairs with the gas velocity, 0.53 / 0.50, 0.39 / 0.42, 0.56 /
+    0.57 and 0.47 / 0.47 s short. Tracked without the flow the schedule's error adds (the same
+    pairs: total over estimate 1.86 / 1.63, 2.16 / 2.05)."""
     if estimate.status != "ok" or estimate.order != 1:
         return None
     fast, slow = (taus[0] for taus in estimate.time_constants)
     tracked = estimate.flow_model is not None and estimate.flow_model.kind == "tracked"
     return (f"first order: two signals determine at most the time constants' difference "
-            f"({slow - fast:.3g} s), never a lag common to both sensors: sheaths on both that "
+            f"({abs(slow - fast):.3g} s), never a lag common to both sensors: sheaths on both that "
             "these data do not resolve lengthen both sensors' total lag (the sum of its "
             "stages) by one unseen amount (0.23 / 0.5 s sheaths on 0.71 / 2.0 s elements gave "
             "0.335 / 1.874 s)" + ("; tracked without the flow, the schedule's own error comes "
