@@ -14,6 +14,7 @@ import pytest
 
 from dualprobe import simulate as sim
 from dualprobe.cli import main
+from dualprobe.io import write_columns
 from dualprobe.workflows.batch import SUMMARY_FIELDS, run_batch
 from dualprobe.workflows.pool import pool_documents
 
@@ -177,3 +178,49 @@ def test_batch_of_50_drive_cycles_pools_the_flow_exponent(
     assert pooled["n_with_flow_model"] == 50
     for sensor in pooled["sensors"]:
         assert sensor["curve"]["exponent"] == pytest.approx(EXPONENT, abs=0.03)
+
+
+def pickup_file(source: Path, directory: Path) -> Path:
+    """``source`` with 0.2 K of 0.05 Hz pickup on sensor 2 only: the sensors see different
+    temperatures, which no sensor model explains (characterise: misfit 5.8 x the noise)."""
+    data = np.genfromtxt(source, delimiter=",", names=True)
+    columns = {name: np.asarray(data[name]) for name in data.dtype.names or ()}
+    columns["T_m2"] = columns["T_m2"] + 0.2 * np.sin(2.0 * np.pi * columns["t"] / 20.0)
+    path = directory / "pickup.csv"
+    write_columns(path, columns)
+    return path
+
+
+def test_a_file_the_model_check_rejects_is_warned_and_not_pooled(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A batch wrote "ok" for every characterisation that ran, warning or not, and pooled its
+    time constants into the calibration; `characterise` on the same file says "warning: the
+    identified model does not explain the data". One verdict per record: the batch's is
+    `characterise`'s (gas reconstructed to judge it), a failed check is "warned", with its
+    reasons, and the file is left out of pooled.json."""
+    good = drive_cycle_files(tmp_path, 2, seed=3)
+    files = [*good, pickup_file(good[0], tmp_path)]
+    out = tmp_path / "out"
+    status = main(["batch", *map(str, files), "--flow", "flow", "--out", str(out), "--workers",
+                   "1", "--quiet"])
+    assert status == 0
+    rows = read_summary(out / "summary.csv")
+    assert tuple(rows[0]) == SUMMARY_FIELDS
+    assert [row["status"] for row in rows] == ["ok", "ok", "warned"]
+    assert "does not explain the data" in rows[2]["warnings"] and rows[2]["error"] == ""
+    assert rows[0]["warnings"] == ""
+    pooled = json.loads((out / "pooled.json").read_text())
+    assert pooled["n_recordings"] == 2 and pooled["files"] == [str(f) for f in good]
+    assert pooled["excluded"][0]["file"] == str(files[2])
+    # the same verdicts from `characterise`, file by file
+    for path, row in zip(files, rows, strict=True):
+        document = tmp_path / (path.stem + ".json")
+        assert main(["characterise", str(path), "--flow", "flow", "--json", str(document)]) == 0
+        adequate = json.loads(document.read_text())["model_check"]["adequate"]
+        assert adequate == (row["status"] == "ok")
+    capsys.readouterr()
+    # nothing to pool: exit 3 naming why
+    assert main(["batch", str(files[2]), "--flow", "flow", "--out", str(tmp_path / "none"),
+                 "--workers", "1", "--quiet"]) == 3
+    assert "no recording's model check passed" in capsys.readouterr().err

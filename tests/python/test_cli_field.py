@@ -13,6 +13,7 @@ import pytest
 from dualprobe import simulate as sim
 from dualprobe.cli import main
 from dualprobe.io import load_columns, write_columns
+from dualprobe.workflows.characterisation import _fmt
 
 
 @pytest.fixture(scope="module")
@@ -280,3 +281,11 @@ def test_a_flow_column_at_zero_while_the_engine_is_off_names_a_window(
     assert "give --window 360:899.9 (the longest stretch above 0, 539.9 s)" in captured.err
     assert main(["characterise", str(stopped), "--flow", "mdot", "--window", "360:899.9"]) == 0
     assert "flow law: power law" in capsys.readouterr().out
+
+
+def test_a_value_far_below_one_is_printed_with_its_digits() -> None:
+    """A second column logged 1e12 times larger gave ``T_m1 = 0.0000000000 ± 0.0000000000 x
+    T_m2``: beyond six decimals the summary prints significant digits instead."""
+    assert _fmt(1.009e-12, 2.2e-14) == "1.009e-12 ± 2.2e-14"
+    assert _fmt(0.5556, 5e-5) == "0.555600 ± 0.000050"  # six decimals: still fixed
+    assert _fmt(1.869, 0.018) == "1.869 ± 0.018"

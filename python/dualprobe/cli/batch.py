@@ -33,9 +33,10 @@ def register(subparsers: Any) -> None:
         description="Characterise every file (CSV, Parquet or MDF4) as `characterise` does, in "
         "parallel: local processes, or a Dask distributed cluster with --scheduler. Writes "
         "DIR/summary.csv (one row per file: status, time constants, flow exponent, quality, "
-        "wall time, error) and DIR/pooled.json (per sensor a tau(flow) curve pooled over the "
-        "recordings, weighted by their uncertainties). A file that fails is a row with its "
-        "error; it never stops the batch. Exit 0 when at least one file was characterised.",
+        "wall time, error, warnings) and DIR/pooled.json (per sensor a tau(flow) curve pooled "
+        "over the recordings, weighted by their uncertainties). A file that fails is a row "
+        "with its error; it never stops the batch. A file whose model check does not pass is "
+        "'warned', with the reasons, and not pooled. Exit 0 when at least one file is ok.",
     )
     parser.add_argument("files", nargs="+", metavar="FILE", help="recordings")
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory")
@@ -81,7 +82,10 @@ def options_of(args: argparse.Namespace) -> dict[str, Any]:
         "hysteresis": args.hysteresis,
         "noise_std": args.noise_std,
         "reference": args.reference,
-        "reconstruction": "smoother" if args.reference else None,
+        # the model check judges the gas too (a rival schedule's, a near-equal pair's common
+        # part), so the SVF path reconstructs as `characterise` does: one verdict per record
+        "reconstruction": ("smoother" if args.reference or args.method in ("auto", "svf")
+                           else None),
         "time_unit": args.time_unit,
     }
     if args.flow is not None:
@@ -115,7 +119,10 @@ def run(args: argparse.Namespace) -> int:
     if not args.quiet:
         print(result.summary())
     if result.n_ok == 0:
-        print_error(f"batch: no recording could be characterised (see {result.summary_path})")
+        # nothing to pool: warned recordings' time constants are no calibration
+        what = ("no recording's model check passed" if result.n_warned
+                else "no recording could be characterised")
+        print_error(f"batch: {what} (see {result.summary_path})")
         return 3
     sys.stdout.flush()
     return 0

@@ -6,13 +6,16 @@ Each file goes through :func:`~dualprobe.workflows.characterise.characterise_fil
 process pool (``concurrent.futures.ProcessPoolExecutor``, spawned workers) or, given a scheduler
 address, on a Dask distributed cluster (``distributed.Client``). Outputs:
 
-* ``DIR/summary.csv``: file, status (ok | error: unusable input | inadequate: the data do not
-  allow an estimate), the dominant time constant of each sensor with its std, the flow model's
+* ``DIR/summary.csv``: file, status (ok | warned: characterised, but the model check says the
+  model does not explain the data or the data do not vouch for it, its reasons in ``warnings``
+  | error: unusable input | inadequate: the data do not allow an estimate, exit 3 of
+  `characterise`), the dominant time constant of each sensor with its std, the flow model's
   kind, exponent and its std, a quality figure (``rmse_vs_reference`` with a reference column,
   else the model check's ``misfit`` when the characterisation reports one), the wall time of the
-  file in its worker, the loader's notes and the error message;
+  file in its worker, the loader's notes, the error message and the model check's warnings;
 * ``DIR/pooled.json``: :func:`dualprobe.workflows.pool.pool_documents` over the files that
-  succeeded, plus the batch's bookkeeping (files, failures, wall times).
+  are ok (a warned file's time constants are no calibration: listed under ``excluded`` with
+  its reasons), plus the batch's bookkeeping (files, failures, wall times).
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ SUMMARY_FIELDS = (
     "wall_time_s",
     "notes",
     "error",
+    "warnings",
 )
 
 
@@ -59,11 +63,12 @@ class FileResult:
     """One file's outcome: ``document`` is the characterisation's JSON document when ok."""
 
     file: str
-    status: str  # ok | error | inadequate
+    status: str  # ok | warned | error | inadequate
     document: dict[str, Any] | None
     notes: tuple[str, ...]
     error: str | None
     wall_time: float
+    warnings: tuple[str, ...] = ()
 
     def row(self) -> dict[str, Any]:
         doc = self.document or {}
@@ -88,6 +93,7 @@ class FileResult:
             "wall_time_s": round(self.wall_time, 3),
             "notes": " | ".join(self.notes),
             "error": self.error or "",
+            "warnings": " | ".join(self.warnings),
         }
 
 
@@ -108,8 +114,12 @@ def characterise_one(path: str, options: Mapping[str, Any]) -> FileResult:
     try:
         result = characterise_file(path, **dict(options))
         document = result.to_json_dict()
-        return FileResult(path, "ok", document, tuple(result.notes), None,
-                          time.perf_counter() - start)
+        check = result.model_check
+        # never "ok" beside a model check that says otherwise (the summary line's warnings)
+        warned = check is not None and not check.adequate
+        warnings = tuple(_one_line(r) for r in check.reasons) if warned and check else ()
+        return FileResult(path, "warned" if warned else "ok", document, tuple(result.notes),
+                          None, time.perf_counter() - start, warnings)
     except InputError as exc:
         status, message = "error", _one_line(exc)
     except EstimationError as exc:
@@ -132,14 +142,24 @@ class BatchResult:
     def n_ok(self) -> int:
         return sum(1 for r in self.results if r.status == "ok")
 
+    @property
+    def n_warned(self) -> int:
+        return sum(1 for r in self.results if r.status == "warned")
+
     def summary(self) -> str:
-        failed = [r for r in self.results if r.status != "ok"]
+        failed = [r for r in self.results if r.status not in ("ok", "warned")]
+        warned = [r for r in self.results if r.status == "warned"]
         times = [r.wall_time for r in self.results]
+        counts = f"{self.n_ok} ok, " + (f"{len(warned)} warned (not pooled), " if warned else "")
         lines = [
-            f"{len(self.results)} recordings ({self.workers}): {self.n_ok} ok, "
+            f"{len(self.results)} recordings ({self.workers}): {counts}"
             f"{len(failed)} failed; {self.wall_time:.1f} s in all, "
             f"{sum(times) / max(len(times), 1):.2f} s per recording in its worker",
         ]
+        lines += [f"  warning: {r.file}: {r.warnings[0] if r.warnings else 'model check'}"
+                  for r in warned[:10]]
+        if len(warned) > 10:
+            lines.append(f"  ... and {len(warned) - 10} more warned (see {self.summary_path})")
         lines += [
             f"  {r.status}: " + (r.error if (r.error or "").startswith(r.file)
                                  else f"{r.file}: {r.error}")
@@ -271,7 +291,9 @@ def run_batch(
     pooled = pool_documents(documents)
     pooled["files"] = [r.file for r in results if r.status == "ok"]
     pooled["failed"] = [{"file": r.file, "status": r.status, "error": r.error}
-                        for r in results if r.status != "ok"]
+                        for r in results if r.status not in ("ok", "warned")]
+    pooled["excluded"] = [{"file": r.file, "warnings": list(r.warnings)}
+                          for r in results if r.status == "warned"]
     elapsed = time.perf_counter() - start
     pooled["wall_time_s"] = elapsed
     pooled["mean_wall_time_per_recording_s"] = sum(r.wall_time for r in results) / len(results)

@@ -32,7 +32,10 @@ def _fmt(value: float, std: float | None = None) -> str:
         return f"{value:.5g} ± inf"
     if std <= 0.0:
         return f"{value:.5g} ± 0"
-    decimals = int(min(max(1 - math.floor(math.log10(std)), 0), 10))
+    decimals = max(1 - math.floor(math.log10(std)), 0)
+    if decimals > 6:
+        # a column in other units (a gain of 1e-12 printed as 0.0000000000 ± 0.0000000000)
+        return f"{value:.4g} ± {std:.2g}"
     return f"{value:.{decimals}f} ± {std:.{decimals}f}"
 
 
