@@ -209,6 +209,8 @@ def test_a_lone_faint_stage_is_read_as_near_equal_sheaths(case: int, kw: dict[st
     check = result.model_check
     assert check is not None and not check.adequate and check.fits
     assert any("nearly equal sheaths on both sensors" in r for r in check.reasons)
+    # the header names a doubt, not a misfit (and never "ok")
+    assert result.summary().splitlines()[1].endswith(": signals fit, result doubtful")
 
 
 _IDLE = {"duration": 120.0, "rate": 50.0, "tau": 0.71, "ratio": 2.84, "m": 0.61,

@@ -223,7 +223,9 @@ class Characterisation:
         lines.append(f"{where}{self.time.size} samples, sample interval "
                      f"{est.sample_interval:.6g} s")
         check = self.model_check
-        status = est.status if check is None or check.adequate else "model misfit"
+        # a doubt is not a misfit: the signals fit, the data do not vouch for the result
+        status = (est.status if check is None or check.adequate
+                  else "signals fit, result doubtful" if check.fits else "model misfit")
         lines.append(f"method {est.method}, order {est.order}: {status}")
         model = est.flow_model
         at = ""
