@@ -60,7 +60,8 @@ SUMMARY_FIELDS = (
 
 @dataclass(frozen=True)
 class FileResult:
-    """One file's outcome: ``document`` is the characterisation's JSON document when ok."""
+    """One file's outcome: ``document`` is the characterisation's JSON document when ok or
+    warned."""
 
     file: str
     status: str  # ok | warned | error | inadequate
