@@ -228,7 +228,9 @@ def characterise_arrays(
             estimate, static, result = levelled(first_order(first, why))
     common_lag = common_lag_note(estimate)
     if common_lag is not None:
-        estimate.identifiability["common_lag"] = common_lag
+        # a new dict: the estimate's own may be shared with a kept fit (estimation.reuse)
+        estimate = replace(estimate, identifiability={**estimate.identifiability,
+                                                      "common_lag": common_lag})
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
     doubt: Undetermined | None = None
