@@ -35,6 +35,7 @@ from dualprobe.workflows.refusals import (
     refuse_opposed,
     refuse_undetermined,
 )
+from dualprobe.workflows.scales import column_scale, in_own_scale, scale_note
 from dualprobe.workflows.undetermined import Undetermined, undetermined
 
 __all__ = [
@@ -159,8 +160,14 @@ def characterise_arrays(
         if reference.shape != t1.shape:
             raise InputError("reference must have the same length as the sensor signals")
     readings = (t1, t2)
-    t1, t2, sigma, held = prepare_readings(t1, t2, ts, parse_noise_std(noise_std), columns,
-                                           time)
+    sigma = parse_noise_std(noise_std)
+    scale = column_scale(t1, t2)  # sensor 2 in sensor 1's scale (workflows/scales.py)
+    if scale != 1.0:
+        t2 = t2 * scale
+        sigma = None if sigma is None else (sigma[0], sigma[1] * scale)
+    t1, t2, sigma, held = prepare_readings(t1, t2, ts, sigma, columns, time)
+    if scale != 1.0:
+        held = (*held, scale_note(scale, columns))
     check_excitation(t1, t2, columns)
     svf = method in ("auto", "svf")
     # a first-order fallback repeats the order-independent steps on the same readings (the
@@ -263,7 +270,7 @@ def characterise_arrays(
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts
     return Characterisation(
-        estimate=estimate,
+        estimate=in_own_scale(estimate, scale),
         columns=columns,
         time=np.asarray(time, dtype=np.float64),
         gas_estimate=gas,
