@@ -43,6 +43,10 @@ __all__ = [
 ]
 
 MIN_SAMPLES = 50
+# |correlation| of output and input above which a tiny output follows the input (other units)
+# rather than nothing (disconnected: noise, ~0). Measured: a 12 s sensor behind a 4 s one on a
+# 15 min drive cycle correlates 0.97 with it; a half-correlated output is no disconnection.
+FOLLOWS = 0.5
 
 Candidates = dict[str, tuple[ModelFit, dict[str, Any]]]
 
@@ -145,6 +149,13 @@ def diagnose(
             f"({max(sigma_u, sigma_y):.3g}): the sensor dynamics cannot be identified"
         )
     if np.ptp(y) < max(20.0 * sigma_y, 1e-9):
+        if np.ptp(y) > 0.0 and abs(float(np.corrcoef(u, y)[0, 1])) > FOLLOWS:
+            # it follows, in other units: a type S thermocouple's voltage in V (1e-5 per K)
+            # was called disconnected below the 0.1 mK resolution floor (floors.RESOLUTION)
+            raise EstimationError(
+                f"diagnose: the output follows the input but changes by {np.ptp(y):.3g} "
+                f"where the input changes by {np.ptp(u):.3g}: input and output in different "
+                "units or scales (e.g. degC against V)? Convert them first")
         # a sensor that does not follow its input (disconnected, stuck, the wrong column) was
         # "explained" by a gain of 3e-9 and an offset
         raise EstimationError(
