@@ -713,3 +713,18 @@ def test_spikes_are_replaced_and_noted() -> None:
                for note in notes)
     assert result.model_check is not None and result.model_check.adequate
     _assert_issue_bounds(result, rec)
+
+
+def test_an_infeasible_order_2_with_the_flow_does_not_ask_for_the_flow() -> None:
+    """A 2 Hz pair, sensor 2 held for three rows, --order 2 with the mass flow: no positive
+    real second stages (the flow law at order 2 chose constant time constants, and their
+    fit has none). The refusal told the user to "give it with --flow", which was given."""
+    rec = record(132005, tau=5.43, ratio=2.09, m=0.51, rate=2.0, gains=(1.014, 0.986),
+                 noise=0.02, jitter=0.01, hold=3)
+    with pytest.raises(EstimationError) as caught:
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                            flow_column="mdot", order=2, reconstruction=None)
+    message = str(caught.value)
+    assert "no positive real time constants" in message
+    assert "--flow" not in message
+    assert "order-2 dynamics" in message and "--order 1" in message

@@ -182,7 +182,7 @@ def characterise_pair(
             raise InputError(str(exc)) from None
         column = signal.values  # as logged: its noise is measured on it (flow_noise)
     run = _runner(a, b, ts, order, hysteresis, sigma, source, filter_time_constant,
-                  static_model)
+                  static_model, flow is not None)
     base = run(None)
     model = None
     estimate = base
@@ -220,12 +220,13 @@ def characterise_pair(
 
 def _runner(a: np.ndarray, b: np.ndarray, ts: float, order: int, hysteresis: bool,
             sigma: tuple[float, float], source: str, filter_time_constant: float | None,
-            static_model: str) -> RunSvf:
+            static_model: str, flow_given: bool = False) -> RunSvf:
     """The SVF characterisation on a schedule psi (None: constant), at ``order`` or
     ``fit_order``, with these settings."""
     def run(psi: np.ndarray | None, fit_order: int = order) -> PairEstimate:
         return characterise_svf(a, b, ts, fit_order, hysteresis, sigma, source,
-                                filter_time_constant, static_model, schedule=psi)
+                                filter_time_constant, static_model, schedule=psi,
+                                flow_given=flow_given)
 
     return run
 
@@ -265,7 +266,7 @@ def relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate
     except ValueError as exc:
         raise InputError(str(exc)) from None
     signal = shifted(unheld(signal, ts)[0], model.delay, ts)
-    run = _runner(a, b, ts, estimate.order, False, sigma, source, None, "auto")
+    run = _runner(a, b, ts, estimate.order, False, sigma, source, None, "auto", True)
     again = relevel(a, b, estimate, signal, run, gas)
     if again is None or again.flow_model is None:
         return None

@@ -89,6 +89,7 @@ class _SvfRun:
     details: dict[str, object]
     tf: float = float("nan")
     schedule: np.ndarray | None = None  # psi per sample (time constants scale as 1/psi)
+    flow_given: bool = False  # (a refusal does not ask for the flow column then)
 
     def fit(self, order: int, static: str, hysteresis: bool, tf: float | None = None
             ) -> Fit | None:
@@ -321,11 +322,15 @@ class _SvfRun:
         for i in range(2):
             t, note = resolved(res.time_constants[i], res.polynomials[i])
             if note == "no positive real time constants":
+                dynamics = (f"order-{res.order} dynamics that follow the flow"
+                            if self.schedule is not None else
+                            f"constant order-{res.order} dynamics" + (
+                                "" if self.flow_given else " (if the time constants vary "
+                                "with the gas flow, give it with --flow)"))
                 return self.failed(
-                    "infeasible", f"sensor {i + 1}: {note} fit these signals with constant "
-                    f"order-{res.order} dynamics (if the time constants vary with the gas "
-                    "flow, give it with --flow; a first-order model may fit: --order 1; or "
-                    "the two columns do not see the same gas)", identifiability)
+                    "infeasible", f"sensor {i + 1}: {note} fit these signals with "
+                    f"{dynamics}: a first-order model may fit (--order 1), or the two columns "
+                    "do not see the same gas", identifiability)
             if note:
                 notes.append(f"sensor {i + 1}: {note}")
             taus.append(t)
@@ -422,11 +427,13 @@ def characterise_svf(
     tf: float | None,
     static: str,
     schedule: np.ndarray | None = None,
+    flow_given: bool = False,
 ) -> PairEstimate:
     """The SVF characterisation (module docstring) of checked signals with the noise levels
     ``sigma`` (given or estimated: ``sigma_source``); ``tf`` None chooses the filter time
     constant, ``static`` is auto | unit | affine; ``schedule`` psi (N,) scales the time
-    constants as 1/psi (design.md 1.5)."""
+    constants as 1/psi (design.md 1.5); ``flow_given``: a flow column was given (its
+    constant fit is one of the flow law's candidates)."""
     details: dict[str, object] = {"noise_std_source": sigma_source}
     # Resolution floor: nothing below a part per million of a signal's variation is resolved
     # (rounding errors of exact data sit there), nor below the discretisation error at the
@@ -439,14 +446,15 @@ def characterise_svf(
     used = (max(sigma[0], floor[0]), max(sigma[1], floor[1]))
     if used != sigma:
         details["noise_std_used"] = used
-    run = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details, schedule=schedule)
+    run = _SvfRun(t1, t2, ts, order, hysteresis, used, static, details, schedule=schedule,
+                  flow_given=flow_given)
     result = run.run(tf)
     if static == "auto" and result.status == "infeasible" and details.get("static_model") == "unit":
         # the unit model fitted as well but leads nowhere: a gain mismatch mimicked by poles
         retry = _SvfRun(t1, t2, ts, order, hysteresis, used, "affine",
                         {"noise_std_source": sigma_source, **({"noise_std_used": used}
                                                               if used != sigma else {})},
-                        schedule=schedule).run(tf)
+                        schedule=schedule, flow_given=flow_given).run(tf)
         if retry.status == "ok":
             retry.details["static_model_reason"] = (
                 "the unit model gave no physical time constants; the affine one does")
