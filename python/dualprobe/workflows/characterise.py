@@ -262,7 +262,7 @@ def characterise_arrays(
                 raise EstimationError("reconstruction produced no values to compare")
             rmse = float(np.sqrt(np.mean((gas[valid] - reference[valid]) ** 2)))
     duration = (t1.size - 1) * ts
-    refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static)
+    refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static, gas_std)
     levels = _noise_levels(estimate, static)
     # the paper's method has no misfit statistic of its own: its residuals are checked
     check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt)
@@ -306,7 +306,7 @@ def _rival_doubt(
         other = _reconstruct(t1, t2, ts, rival, mode, False, static)
         residuals = _residuals(other, t1, t2, static)
         refuse_implausible(rival, (t1.size - 1) * ts, ("sensor 1", "sensor 2"), residuals,
-                           (t1, t2), other.gas, static)
+                           (t1, t2), other.gas, static, other.gas_std)
         # (applied to the product's own gas only while it misfits; a rival must pass it)
         refuse_departing_gas(rival, other.gas, (t1, t2), static,
                              float(rival.details.get("residual_to_noise", math.nan)))  # type: ignore[arg-type]
