@@ -6,7 +6,7 @@ true, so that half-difference is part of the gas's uncertainty (added to ``T_g_s
 quadrature), and where it exceeds the uncertainty stated without it over a stretch of the
 record (its RMS over the posterior's RMS in a ``WINDOW``-long stretch above ``LIMIT``: the rival's
 gas beyond three of the posterior's standard deviations there) the model check doubts the
-result. The same judges the common part of two near-equal second stages
+result. The same judges the common part of two second stages
 (:mod:`dualprobe.workflows.common_part`), whose rival is the gas with that part one standard
 uncertainty shorter: a one-sigma move, so all of its distance is uncertainty.
 """
@@ -21,7 +21,7 @@ import numpy as np
 __all__ = ["LIMIT", "WINDOW", "Cause", "Undetermined", "undetermined"]
 
 # "schedule": a rival schedule's gas (spread: half the distance); "common part": the gas with
-# near-equal stages' common part one standard uncertainty shorter (spread: all of it)
+# both second stages one standard uncertainty shorter (spread: all of it)
 Cause = Literal["schedule", "common part"]
 
 # s: a manoeuvre's length on a drive cycle (accelerations and cruises of 4-80 s), so that one
@@ -58,12 +58,13 @@ class Undetermined:
         if self.cause == "common part":
             return (
                 "the second stages' common part is not determined well enough for this gas: "
-                "the two sensors' nearly equal stages nearly cancel from their cross-relation, "
-                "so the data fix their common part only loosely, and one standard uncertainty "
-                f"of it moves the gas by {self.kelvin:.3g} K RMS over {WINDOW:g} s from t = "
-                f"{self.start:.0f} s, {self.ratio:.2g} times the uncertainty stated without it "
-                "(T_g_std includes it); sheaths this alike may be sized several times too "
-                "long: compare with --order 1")
+                "a lag common to both sensors cancels from their cross-relation, so the data "
+                "fix the part their second stages share only loosely, and one standard "
+                f"uncertainty of it moves the gas by {self.kelvin:.3g} K RMS over {WINDOW:g} s "
+                f"from t = {self.start:.0f} s, {self.ratio:.2g} times the uncertainty stated "
+                "without it (T_g_std includes it); the stages may be sized several times too "
+                "long (alike sheaths, or sheaths that follow the flow otherwise than the "
+                "elements): compare with --order 1")
         return (
             f"the tracked time constants are not determined by these data: another schedule "
             f"explains both signals as well and gives a gas {2.0 * self.kelvin:.3g} K RMS away "
