@@ -83,8 +83,10 @@ def _class_fit(d2: np.ndarray, speed2: np.ndarray, classes: list[np.ndarray],
     variance scaled by the normal ``share`` the keeping leaves, and j^2 the least squares of
     the classes' excess variance on their excess squared slope through the stillest class
     (its variance is the noise's)."""
-    variance = np.array([np.mean(d2[c[keep[c]]]) for c in classes]) / share
-    slopes = np.array([np.mean(speed2[c[keep[c]]]) for c in classes])
+    # (a class with no row kept, which no bound above its own variance leaves, keeps them all)
+    kept = [c[keep[c]] if np.any(keep[c]) else c for c in classes]
+    variance = np.array([np.mean(d2[rows]) for rows in kept]) / share
+    slopes = np.array([np.mean(speed2[rows]) for rows in kept])
     excess, rise = variance - variance[0], slopes - slopes[0]
     j2 = float(np.dot(excess, rise) / np.dot(rise, rise)) if np.dot(rise, rise) > 0.0 else 0.0
     return variance, slopes, max(j2, 0.0)
