@@ -302,3 +302,23 @@ def test_unlike_stages_that_share_a_common_part_are_doubted() -> None:
     error = result.gas_estimate - rec.tg
     # 8.2 without the doubt; 3.6 with it (the move is one standard uncertainty of the stages)
     assert float(np.sqrt(np.mean((error / result.gas_std) ** 2))) < 5.0
+
+
+def test_a_lone_second_stage_says_the_common_lag_is_open() -> None:
+    """2 Hz, 300 s, 4.3 / 11.7 s elements behind 0.72 / 0.49 s sheaths (logger_sweep.py 133 8,
+    case 133004), the mass flow: one second stage of 0.16 s on one sensor, the sheaths'
+    difference; the lag both share is unseen and the gas comes out late by it (0.35 s,
+    1.97x the oracle, its error 8.9 times T_g_std), called adequate like any first-order
+    pair. Like them it now says what its time constants leave open."""
+    rec = record(133004, tau=4.34, ratio=2.7, m=0.39, rate=2.0, sheaths=(0.72, 0.49),
+                 gains=(1.039, 0.971), noise=0.02, adc=0.02, hold=3, duration=300.0)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
+                                 flow_column="mdot")
+    assert sorted(len(taus) for taus in result.estimate.time_constants) == [1, 2]
+    note = str(result.estimate.identifiability["common_lag"])
+    assert note.startswith("one sensor's second stage only") and "datasheet" in note
+    assert "one sensor's second stage only" in result.summary()
+    assert result.gas_estimate is not None
+    slope = np.gradient(rec.gas, rec.ts)
+    late = -float(np.dot(result.gas_estimate - rec.gas, slope) / np.dot(slope, slope))
+    assert late > 0.2  # what the note says: late by a lag common to both (0.35 s measured)

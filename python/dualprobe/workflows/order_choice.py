@@ -74,8 +74,9 @@ def regimes_reason(estimate: PairEstimate) -> str | None:
 
 
 def common_lag_note(estimate: PairEstimate) -> str | None:
-    """What a first-order pair's time constants are (None for order 2): two signals determine at
-    most their difference, never a lag common to both sensors. Sheaths on both sensors that the
+    """What a first-order pair's time constants are, or an order-2 pair's with a second stage on
+    one sensor only (None where both have one): two signals determine at most their
+    difference, never a lag common to both sensors. Sheaths on both sensors that the
     data do not resolve act, to second order in the frequency, as such a common lag: the
     first-order fit gives both sensors' total lags (the sum of each one's stages) short by one
     amount, delta = (b s2 - a s1) / (b + s2 - a - s1) for elements a, b behind sheaths s1, s2.
@@ -85,17 +86,29 @@ def common_lag_note(estimate: PairEstimate) -> str | None:
     on four sheathed drive-cycle pairs with the gas velocity, 0.53 / 0.50, 0.39 / 0.42, 0.56 /
     0.57 and 0.47 / 0.47 s short. Tracked without the flow the schedule's error adds (the same
     pairs: total over estimate 1.86 / 1.63, 2.16 / 2.05)."""
-    if estimate.status != "ok" or estimate.order != 1:
+    if estimate.status != "ok":
+        return None
+    orders = [len(taus) for taus in estimate.time_constants]
+    tracked = estimate.flow_model is not None and estimate.flow_model.kind == "tracked"
+    tail = (("; tracked without the flow, the schedule's own error comes on top" if tracked
+             else "") + "; the sheaths' datasheet tells")
+    if estimate.order == 2 and sorted(orders) == [1, 2]:
+        # one sensor's second stage only: sheaths on both show as one stage, their
+        # difference (logger_sweep.py 133 8: 0.61 / 0.85 s sheaths gave one 0.14 s stage,
+        # the gas 0.22 s late and 2.54x the oracle; 1.00 / 0.68 s one 0.16 s, 0.35 s late)
+        lone = max(taus[-1] for taus in estimate.time_constants if len(taus) == 2)
+        return (f"one sensor's second stage only ({lone:.3g} s): two signals determine the "
+                "stages' differences, never a lag common to both sensors: sheaths on both "
+                "show as one stage, their difference, and lengthen both sensors' total lag by "
+                "one unseen amount, by which the gas is late" + tail)
+    if estimate.order != 1:
         return None
     fast, slow = (taus[0] for taus in estimate.time_constants)
-    tracked = estimate.flow_model is not None and estimate.flow_model.kind == "tracked"
     return (f"first order: two signals determine at most the time constants' difference "
             f"({abs(slow - fast):.3g} s), never a lag common to both sensors: sheaths on both that "
             "these data do not resolve lengthen both sensors' total lag (the sum of its "
             "stages) by one unseen amount (0.23 / 0.5 s sheaths on 0.71 / 2.0 s elements gave "
-            "0.335 / 1.874 s)" + ("; tracked without the flow, the schedule's own error comes "
-                                  "on top" if tracked else "")
-            + "; the sheaths' datasheet tells")
+            "0.335 / 1.874 s)" + tail)
 
 
 def first_order(first: PairEstimate, why: str) -> PairEstimate:
