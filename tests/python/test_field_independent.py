@@ -744,3 +744,22 @@ def test_a_short_stage_the_filter_moves_by_a_fraction_of_a_row_is_kept() -> None
     assert result.model_check is not None and result.model_check.adequate
     assert result.gas_estimate is not None
     _assert_issue_bounds(result, rec, gains)
+
+
+def test_a_flow_half_whose_misfit_is_below_zero_says_nothing_about_the_law() -> None:
+    """25 Hz, 10 min, 9.8 / 30 s elements, 0.1 K ADC steps, 10 ms jitter, the slow sensor
+    held for 3 rows (logger_sweep.py 133 8, case 133000), the mass flow: the low-flow half's
+    misfit came out at -2.5e4 times the noise (its noise compensation beyond its data) and
+    the summary warned that the halves lay "135212 standard deviations apart" beside a gas at
+    1.09x the oracle. A half below zero is no evidence: no split, adequate."""
+    gains = (0.979, 1.026)
+    rec = record(133000, tau=9.8, ratio=3.09, m=0.44, rate=25.0, gains=gains, noise=0.05,
+                 adc=0.1, jitter=0.01, hold=3, duration=600.0)
+    result = _with_mass_flow(rec)
+    model = result.estimate.flow_model
+    assert model is not None
+    assert all(model.evidence.get(key, 1.0) > 0.0
+               for key in ("misfit_low_flow", "misfit_high_flow"))
+    assert result.model_check is not None and result.model_check.adequate
+    assert result.gas_estimate is not None
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)
