@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -52,7 +53,9 @@ def _draw(rng: np.random.Generator, short: bool) -> dict[str, object]:
                                          else [300.0, 600.0, 1200.0]))}
 
 
-def sweep(seed: int, count: int, short: bool, velocity: bool = False) -> None:
+def drawn(seed: int, count: int, short: bool
+          ) -> Iterator[tuple[int, dict[str, object], fi.Recording, float]]:
+    """(case, draw, its record, the oracle's gas RMSE) for ``count`` draws of ``seed``."""
     rng = np.random.default_rng(seed)
     for k in range(count):
         draw = _draw(rng, short)
@@ -60,11 +63,17 @@ def sweep(seed: int, count: int, short: bool, velocity: bool = False) -> None:
         rec = fi.record(case, **draw)  # type: ignore[arg-type]
         sheaths, gains = draw["sheaths"], draw["gains"]
         assert isinstance(sheaths, tuple) and isinstance(gains, tuple)
-        noise = rec.noise
-        best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (noise, noise),
-                      sheath1=rec.sheath1 if sheaths[0] else None,
+        best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2,
+                      (rec.noise, rec.noise), sheath1=rec.sheath1 if sheaths[0] else None,
                       sheath2=rec.sheath2 if sheaths[1] else None,
                       static2=(gains[1] / gains[0], 0.0), gases=("rw",)).rmse
+        yield case, draw, rec, best
+
+
+def sweep(seed: int, count: int, short: bool, velocity: bool = False) -> None:
+    for case, draw, rec, best in drawn(seed, count, short):
+        gains = draw["gains"]
+        assert isinstance(gains, tuple)
         raw = float(np.sqrt(np.mean((rec.t1 - rec.gas) ** 2)))
         label = f"{case}: " + " ".join(f"{key} {value}" for key, value in draw.items())
         column = rec.mass_flow * rec.gas / gains[0] if velocity else rec.mass_flow

@@ -13,25 +13,13 @@ import sys
 
 import numpy as np
 
-import field_independent as fi
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_oracle import oracle
-from logger_sweep import _draw
+from logger_sweep import drawn
 
 
 def study(seed: int, count: int) -> None:
-    rng = np.random.default_rng(seed)
-    for k in range(count):
-        draw = _draw(rng, False)
-        case = seed * 1000 + k
-        rec = fi.record(case, **draw)  # type: ignore[arg-type]
-        sheaths, gains = draw["sheaths"], draw["gains"]
-        assert isinstance(sheaths, tuple) and isinstance(gains, tuple)
-        best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2,
-                      (rec.noise, rec.noise), sheath1=rec.sheath1 if sheaths[0] else None,
-                      sheath2=rec.sheath2 if sheaths[1] else None,
-                      static2=(gains[1] / gains[0], 0.0), gases=("rw",)).rmse
+    for case, draw, rec, best in drawn(seed, count, False):
         label = f"{case}: " + " ".join(f"{key} {value}" for key, value in draw.items())
         line = []
         for order in ("auto", 2):
