@@ -78,18 +78,18 @@ def _normal_share(keep: float) -> float:
 
 
 def _class_fit(d2: np.ndarray, speed2: np.ndarray, classes: list[np.ndarray],
-               keep: np.ndarray, share: float) -> tuple[np.ndarray, np.ndarray, float]:
-    """(each class's variance, its mean squared slope, j^2): the means over the kept rows, the
-    variance scaled by the normal ``share`` the keeping leaves, and j^2 the least squares of
-    the classes' excess variance on their excess squared slope through the stillest class
-    (its variance is the noise's)."""
+               keep: np.ndarray, share: float) -> tuple[np.ndarray, float]:
+    """(each class's variance, j^2): the means over the kept rows, the variance scaled by the
+    normal ``share`` the keeping leaves, and j^2 the least squares of the classes' excess
+    variance on their excess mean squared slope through the stillest class (its variance is
+    the noise's)."""
     # (a class with no row kept, which no bound above its own variance leaves, keeps them all)
     kept = [c[keep[c]] if np.any(keep[c]) else c for c in classes]
     variance = np.array([np.mean(d2[rows]) for rows in kept]) / share
     slopes = np.array([np.mean(speed2[rows]) for rows in kept])
     excess, rise = variance - variance[0], slopes - slopes[0]
     j2 = float(np.dot(excess, rise) / np.dot(rise, rise)) if np.dot(rise, rise) > 0.0 else 0.0
-    return variance, slopes, max(j2, 0.0)
+    return variance, max(j2, 0.0)
 
 
 def jitter_variance(x: np.ndarray, ts: float) -> float:
@@ -105,11 +105,11 @@ def jitter_variance(x: np.ndarray, ts: float) -> float:
     keep = np.zeros(d.size, dtype=bool)
     for c in classes:
         keep[c] = d2[c] <= np.quantile(d2[c], _FIRST_KEEP)
-    variance, _, j2 = _class_fit(d2, speed2, classes, keep, _normal_share(_FIRST_KEEP))
+    variance, j2 = _class_fit(d2, speed2, classes, keep, _normal_share(_FIRST_KEEP))
     bound = float(scipy.stats.chi2.ppf(_KEEP, 1))
     for _ in range(_PASSES):
         keep = d2 <= bound * (variance[0] + j2 * speed2)
-        variance, _, j2 = _class_fit(d2, speed2, classes, keep, _normal_share(_KEEP))
+        variance, j2 = _class_fit(d2, speed2, classes, keep, _normal_share(_KEEP))
     if not (variance[0] > 0.0 and variance[-1] > _RATIO * variance[0]):
         return 0.0
     if held_share(v) > HELD_SHARE:
