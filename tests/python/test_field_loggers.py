@@ -60,3 +60,34 @@ def test_a_flow_half_whose_misfit_is_below_zero_says_nothing_about_the_law() -> 
     assert result.model_check is not None and result.model_check.adequate
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)
+
+
+@pytest.mark.parametrize(("case", "draw"), [
+    (132005, {"tau": 5.43, "ratio": 2.09, "m": 0.51, "gains": (1.014, 0.986), "noise": 0.02,
+              "jitter": 0.01}),
+    (140021, {"tau": 5.75, "ratio": 2.55, "m": 0.63, "gains": (1.028, 0.978), "noise": 0.05,
+              "adc": 0.0, "jitter": 0.002, "duration": 300.0}),
+    (140029, {"tau": 4.88, "ratio": 2.57, "m": 0.69, "gains": (0.965, 0.977), "noise": 0.15,
+              "jitter": 0.002, "duration": 600.0}),
+], ids=["132005", "140021", "140029"])
+def test_held_readings_do_not_split_the_flow_regimes_of_a_first_order_pair(
+        case: int, draw: dict[str, object]) -> None:
+    """2 Hz, one sensor held for three rows (logger_sweep.py cases), unsheathed, the mass
+    flow: what the sensor does between refreshes grows with the flow, so the interpolated
+    readings misfit the high-flow half by that alone (halves 11-26 standard deviations apart)
+    and the summary warned beside a gas at 0.60-0.77x the oracle. The split guards a second
+    stage on each sensor, which a first-order pair has not: adequate."""
+    rec = record(case, rate=2.0, hold=3, **draw)  # type: ignore[arg-type]
+    result = _with_mass_flow(rec)
+    model = result.estimate.flow_model
+    assert model is not None
+    # the split is measured still (it is what held readings do to it) but not judged
+    assert model.evidence.get("flow_split_statistic", 0.0) > 10.0
+    assert [len(taus) for taus in result.estimate.time_constants] == [1, 1]
+    assert result.model_check is not None and result.model_check.adequate, (
+        result.model_check.reasons)
+    assert result.gas_estimate is not None
+    gains = draw["gains"]
+    assert isinstance(gains, tuple)
+    # the issue's bound with the flow (measured 0.60-0.77x: the oracle is given the held rows)
+    assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)

@@ -27,7 +27,12 @@ from dualprobe.workflows.order_choice import (
     refuse_regimes,
     regimes_reason,
 )
-from dualprobe.workflows.readings import check_excitation, parse_noise_std, prepare_readings
+from dualprobe.workflows.readings import (
+    check_excitation,
+    interpolated,
+    parse_noise_std,
+    prepare_readings,
+)
 from dualprobe.workflows.refusals import (
     in_first_scale,
     refuse_departing_gas,
@@ -38,14 +43,8 @@ from dualprobe.workflows.refusals import (
 from dualprobe.workflows.scales import column_scale, in_own_scale, scale_note
 from dualprobe.workflows.undetermined import Undetermined, undetermined
 
-__all__ = [
-    "METHODS",
-    "RECONSTRUCTION_MODES",
-    "Characterisation",
-    "characterise_arrays",
-    "characterise_file",
-    "load_pair",
-]
+__all__ = ["METHODS", "RECONSTRUCTION_MODES", "Characterisation", "characterise_arrays",
+           "characterise_file", "load_pair"]
 
 ORDERS = ("auto", 1, 2)
 
@@ -265,7 +264,8 @@ def characterise_arrays(
     refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static, gas_std)
     levels = _noise_levels(estimate, static)
     # the paper's method has no misfit statistic of its own: its residuals are checked
-    check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt)
+    check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt,
+                         refreshed=interpolated(readings, ts))
              if svf or residuals is not None else None)
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts

@@ -11,13 +11,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from dualprobe.io import EstimationError, InputError
-from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, unhold
+from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, refreshes, unhold
 from dualprobe.models.jitter import equivalent_noise_std, jitter_variance
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
 
-__all__ = ["check_excitation", "parse_noise_std", "prepare_readings"]
+__all__ = ["check_excitation", "interpolated", "parse_noise_std", "prepare_readings"]
 
 _LISTED = 3  # spikes named in a note
 
@@ -96,6 +96,13 @@ def prepare_readings(
                          f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
                          f"per refresh ({level:.3g} K per row in the noise std)")
     return values[0], values[1], (levels[0], levels[1]), tuple(notes)
+
+
+def interpolated(readings: tuple[np.ndarray, np.ndarray], ts: float) -> bool:
+    """Whether :func:`prepare_readings` interpolates either of these readings between its
+    logger's refreshes (a regular hold)."""
+    return any(refreshes(np.asarray(x, dtype=float), ts, SENSOR_REFRESH)[1] > 1
+               for x in readings)
 
 
 def parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
