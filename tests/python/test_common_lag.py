@@ -139,23 +139,35 @@ def test_asked_for_order_2_with_near_equal_stages_the_law_mis_sizes_is_refused()
                             flow_column="mdot", order=2)
 
 
-def test_near_equal_sheaths_sized_long_where_the_split_cannot_see_it_are_doubted() -> None:
+def test_near_equal_sheaths_sized_long_where_the_split_cannot_see_it_fall_back() -> None:
     """0.42 / 0.45 s sheaths (near_equal_sweep.py 201, case 20107; 10 Hz, 20 min, the mass flow
     as the column): order 2 sized them 1.78 / 1.86 s (jackknife 22 %), the misfit 1.13, the flow
     halves 2.9 standard deviations apart, and the gas 8.3x the oracle's error was called
     adequate with T_g_std a sixth of it. Moving the common part by its standard uncertainty
-    moves the gas by 5.4 times T_g_std (resolved near-equal pairs: 0.59-0.84), so the result is
-    doubted and T_g_std carries that move (workflows/common_part.py)."""
+    moves the gas by 5.4 times T_g_std (resolved near-equal pairs: 0.59-0.84). That was
+    doubted (9.95 K off, warned); now the order chosen by evidence is first order there
+    (3.76 K), warned, with half the distance to the order-2 gas in T_g_std."""
     rec = record(20107, rate=10.0, tau=4.03, ratio=3.09, m=0.37, sheaths=(0.42, 0.45))
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.mass_flow,
                                  flow_column="mdot", reconstruction="smoother")
+    assert [len(taus) for taus in result.estimate.time_constants] == [1, 1]
+    fallback = str(result.estimate.identifiability["order_fallback"])
+    assert "common part is not determined" in fallback
     check = result.model_check
-    assert check is not None and not check.adequate and check.fits
-    assert any("common part is not determined" in r for r in check.reasons)
+    assert check is not None and not check.adequate
+    assert any(r.startswith("first order was taken where the second-order fit's common part")
+               for r in check.reasons)
     assert result.gas_estimate is not None and result.gas_std is not None
-    z = float(np.sqrt(np.mean(((result.gas_estimate - rec.gas) / result.gas_std) ** 2)))
-    # measured 2.06 (7.66 without the move); 3 is the sweeps' mark of an overconfident result
-    # (logger_sweep.py: 1.8-2.2 where the gas beyond the bandwidth is the only thing uncovered)
+    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
+                  sheath1=rec.sheath1, sheath2=rec.sheath2, gases=("rw",)).rmse
+    error = result.gas_estimate - rec.gas
+    # measured 3.1x (order 2: 8.3x); as for case 8301 above, near-equal sheaths put the
+    # issue's 1.5x out of reach and 3.5x fails if order 2 comes back
+    assert float(np.sqrt(np.mean(error ** 2))) < 3.5 * best
+    z = float(np.sqrt(np.mean((error / result.gas_std) ** 2)))
+    # measured 1.5 (first order's own T_g_std: 12.1); 3 is the sweeps' mark of an
+    # overconfident result (logger_sweep.py: 1.8-2.2 where the gas beyond the bandwidth is the
+    # only thing uncovered)
     assert z < 3.0, z
 
 
@@ -279,7 +291,7 @@ def test_with_the_velocity_a_first_order_pair_is_short_by_one_common_lag() -> No
         assert min(short) > 0.25 and abs(short[0] - short[1]) < 0.1, short
 
 
-def test_unlike_stages_that_share_a_common_part_are_doubted() -> None:
+def test_unlike_stages_that_share_a_common_part_fall_back_to_first_order() -> None:
     """Sheaths that follow the flow otherwise than the elements (0.54 / 0.61 s with exponents
     0.44 / 0.52 on 1.54 / 3.88 s elements with 0.47; test_field_conditions.py's 5107 at 2 Hz
     instead of 10): the order-2 fit sized stages of 4.0 + 1.4 s and 5.0 + 3.1 s, not alike
@@ -287,7 +299,7 @@ def test_unlike_stages_that_share_a_common_part_are_doubted() -> None:
     3.7 s where the pair's is 0.6 s; misfit 0.98 and the flow halves alike, the gas 21.8 K off
     where the raw fast sensor is 13 K, called adequate (its error 8.2 times T_g_std). One
     standard uncertainty of the stages' common part moves the gas beyond what T_g_std stated:
-    doubted (the signals fit), and T_g_std carries the move."""
+    that was doubted (the gas still 21.8 K off); now first order (5.4 K), warned."""
     rng = np.random.default_rng(5107)
     conditions = sim.drive_cycle(DURATION, rng)
     s1 = sim.FieldSensor(1.54, 0.47, 0.54, sheath_exponent=0.44, noise_std=0.072)
@@ -295,13 +307,17 @@ def test_unlike_stages_that_share_a_common_part_are_doubted() -> None:
     rec = sim.simulate_field_pair(conditions, s1, s2, sample_rate=2.0, rng=rng)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, flow=rec.flow,
                                  flow_column="flow")
+    assert [len(taus) for taus in result.estimate.time_constants] == [1, 1]
     check = result.model_check
-    assert check is not None and not check.adequate and check.fits
+    assert check is not None and not check.adequate
     assert any("common part is not determined" in r for r in check.reasons)
     assert result.gas_estimate is not None and result.gas_std is not None
     error = result.gas_estimate - rec.tg
-    # 8.2 without the doubt; 3.6 with it (the move is one standard uncertainty of the stages)
-    assert float(np.sqrt(np.mean((error / result.gas_std) ** 2))) < 5.0
+    raw = float(np.sqrt(np.mean((rec.t1 - rec.tg) ** 2)))
+    # measured 5.4 K against the raw fast sensor's 13.0 K (order 2: 21.8 K, worse than raw)
+    assert float(np.sqrt(np.mean(error ** 2))) < 0.5 * raw
+    # measured 1.4 (8.2 with order 2 undoubted, 3.6 doubted)
+    assert float(np.sqrt(np.mean((error / result.gas_std) ** 2))) < 3.0
 
 
 def test_a_lone_second_stage_says_the_common_lag_is_open() -> None:

@@ -656,14 +656,14 @@ def test_characterise_reports_a_failed_reconstruction_as_estimation_error(
     """A reconstruction that fails on valid input is exit 3 (estimation), never 2 (input)."""
     from dualprobe.cli import main
     from dualprobe.io import EstimationError
-    from dualprobe.workflows import characterise
+    from dualprobe.workflows import characterise, gas
 
     rec = _study((12.48,), (28.95,), noise=0.01, seed=1)
 
     def failing(*args: object, **kwargs: object) -> np.ndarray:
         raise ValueError("reconstruct_pair: the smoother found no usable gas intensity")
 
-    monkeypatch.setattr(characterise, "reconstruct", failing)
+    monkeypatch.setattr(gas, "reconstruct", failing)  # where the characterisation's gas is made
     with pytest.raises(EstimationError, match=r"reconstruction \(smoother\) .*failed"):
         characterise.characterise_arrays(rec.t1, rec.t2, rec.ts)
     path = tmp_path / "pair.csv"

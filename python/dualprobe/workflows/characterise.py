@@ -15,11 +15,12 @@ from dualprobe.estimation.pair import has_level_term
 from dualprobe.estimation.reuse import Kept
 from dualprobe.io import EstimationError, InputError, Recording, load_recording, write_columns
 from dualprobe.reconstruction import MODES as RECONSTRUCTION_MODES
-from dualprobe.reconstruction import Bandwidth, Reconstruction, reconstruct
+from dualprobe.reconstruction import Bandwidth, Reconstruction
 from dualprobe.report.json import write_json as write_json_document
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.checks import MISFIT_LIMIT, check_model, residual_ratios
-from dualprobe.workflows.common_part import common_part_doubt
+from dualprobe.workflows.common_part import common_part_doubt, fallback_reason
+from dualprobe.workflows.gas import estimate_gas, noise_levels, residuals_of
 from dualprobe.workflows.order_choice import (
     common_lag_note,
     first_order,
@@ -34,7 +35,6 @@ from dualprobe.workflows.readings import (
     prepare_readings,
 )
 from dualprobe.workflows.refusals import (
-    in_first_scale,
     refuse_departing_gas,
     refuse_implausible,
     refuse_opposed,
@@ -47,10 +47,6 @@ __all__ = ["METHODS", "RECONSTRUCTION_MODES", "Characterisation", "characterise_
            "characterise_file", "load_pair"]
 
 ORDERS = ("auto", 1, 2)
-
-
-def _format_taus(taus: Sequence[Sequence[float]]) -> str:
-    return " and ".join("(" + ", ".join(f"{tau:.5g}" for tau in sensor) + ") s" for sensor in taus)
 
 
 def _relative_static(estimate: PairEstimate) -> tuple[float, float] | None:
@@ -78,19 +74,6 @@ def _failure_message(estimate: PairEstimate) -> str:
         "different gas temperatures or need another model; try --order 1, --flow or "
         "--hysteresis, or check that --sensor1 is the faster sensor)",
     }.get(estimate.status, "")
-
-
-def _residuals(
-    result: Reconstruction, t1: np.ndarray, t2: np.ndarray, static: tuple[float, float] | None
-) -> tuple[np.ndarray, np.ndarray] | None:
-    """Each sensor's reading minus the smoother model's prediction (sensor 2 in sensor 1's
-    calibration when the affine static model holds)."""
-    fit = result.fit
-    if fit is None:
-        return None
-    outputs = np.argmax(fit.model.h, axis=1)
-    predicted = fit.states[:, outputs] + fit.offset
-    return t1 - predicted[:, 0], in_first_scale((t1, t2), static, 1) - predicted[:, 1]
 
 
 def _order(order: int | str, hysteresis: bool) -> tuple[int, int | None]:
@@ -217,7 +200,7 @@ def characterise_arrays(
         refuse_opposed(static, columns)
         if not (flow is not None and svf and has_level_term(fit)):
             return fit, static, None
-        result = _reconstruct(t1, t2, ts, fit, reconstruction or "smoother", hysteresis,
+        result = estimate_gas(t1, t2, ts, fit, reconstruction or "smoother", hysteresis,
                               static)
         again = _relevelled(t1, t2, ts, fit, result.gas, flow, flow_column, sigma,
                             uncertainty)
@@ -232,29 +215,51 @@ def characterise_arrays(
         first = estimate_at(1)
         if first.status == "ok":
             estimate, static, result = levelled(first_order(first, why))
-    common_lag = common_lag_note(estimate)
-    if common_lag is not None:
-        # a new dict: the estimate's own may be shared with a kept fit (estimation.reuse)
-        estimate = replace(estimate, identifiability={**estimate.identifiability,
-                                                      "common_lag": common_lag})
+
+    def with_gas(estimate: PairEstimate, static: tuple[float, float] | None,
+                 result: Reconstruction | None) -> tuple[PairEstimate, Reconstruction | None,
+                                                         Undetermined | None]:
+        """``estimate`` with what its order leaves open noted, its gas (where asked) and
+        what the data leave of it undetermined (a rival schedule's gas, the common part's)."""
+        common_lag = common_lag_note(estimate)
+        if common_lag is not None:
+            # a new dict: the estimate's own may be shared with a kept fit (estimation.reuse)
+            estimate = replace(estimate, identifiability={**estimate.identifiability,
+                                                          "common_lag": common_lag})
+        if reconstruction is None:
+            return estimate, None, None
+        if result is None:
+            result = estimate_gas(t1, t2, ts, estimate, reconstruction, hysteresis, static)
+        doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, result.gas, result.gas_std)
+        if doubt is None and result.gas_std is not None:
+            doubt = common_part_doubt(estimate, result.gas, result.gas_std, ts, lambda moved:
+                                      estimate_gas(t1, t2, ts, moved, reconstruction,
+                                                   hysteresis, static).gas)
+        return estimate, result, doubt
+
+    estimate, result, doubt = with_gas(estimate, static, result)
+    if (requested is None and flow is not None and result is not None and doubt is not None
+            and doubt.cause == "common part" and doubt.doubtful):
+        # order chosen by evidence: stages whose common part the data leave open are no
+        # resolved pair; first order, with the distance to the order-2 gas as uncertainty
+        # (common_part.py: the gas 9.95 -> 3.76 K, 21.8 -> 5.4 K)
+        first = estimate_at(1)
+        if first.status == "ok":
+            second = result.gas
+            estimate, static, result = levelled(first_order(first, fallback_reason(doubt)))
+            estimate, result, doubt = with_gas(estimate, static, result)
+            if result is not None and result.gas_std is not None:
+                doubt = undetermined(result.gas, second, result.gas_std, ts, cause="order")
     gas: np.ndarray | None = None
     gas_std: np.ndarray | None = None
-    doubt: Undetermined | None = None
     resolved: Bandwidth | None = None
     rmse: float | None = None
     residuals = None
-    if reconstruction is not None:
-        if result is None:
-            result = _reconstruct(t1, t2, ts, estimate, reconstruction, hysteresis, static)
+    if result is not None:
         gas, gas_std, resolved = result.gas, result.gas_std, result.bandwidth
-        doubt = _rival_doubt(t1, t2, ts, estimate, reconstruction, gas, gas_std)
-        if doubt is None and gas_std is not None:
-            doubt = common_part_doubt(
-                estimate, gas, gas_std, ts, lambda moved: _reconstruct(
-                    t1, t2, ts, moved, reconstruction, hysteresis, static).gas)
         if doubt is not None and gas_std is not None:
             gas_std = np.hypot(gas_std, doubt.spread)
-        residuals = _residuals(result, t1, t2, static)
+        residuals = residuals_of(result, t1, t2, static)
         if reference is not None:
             valid = np.isfinite(gas)
             if not np.any(valid):
@@ -262,7 +267,7 @@ def characterise_arrays(
             rmse = float(np.sqrt(np.mean((gas[valid] - reference[valid]) ** 2)))
     duration = (t1.size - 1) * ts
     refuse_implausible(estimate, duration, columns, residuals, (t1, t2), gas, static, gas_std)
-    levels = _noise_levels(estimate, static)
+    levels = noise_levels(estimate, static)
     # the paper's method has no misfit statistic of its own: its residuals are checked
     check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt,
                          refreshed=interpolated(readings, ts))
@@ -303,8 +308,8 @@ def _rival_doubt(
         return None
     static = _relative_static(rival)
     try:
-        other = _reconstruct(t1, t2, ts, rival, mode, False, static)
-        residuals = _residuals(other, t1, t2, static)
+        other = estimate_gas(t1, t2, ts, rival, mode, False, static)
+        residuals = residuals_of(other, t1, t2, static)
         refuse_implausible(rival, (t1.size - 1) * ts, ("sensor 1", "sensor 2"), residuals,
                            (t1, t2), other.gas, static, other.gas_std)
         # (applied to the product's own gas only while it misfits; a rival must pass it)
@@ -313,7 +318,7 @@ def _rival_doubt(
     except EstimationError:
         return None
     if residuals is not None and max(
-            residual_ratios(residuals, _noise_levels(rival, static))) > MISFIT_LIMIT:
+            residual_ratios(residuals, noise_levels(rival, static))) > MISFIT_LIMIT:
         return None
     return undetermined(gas, other.gas, gas_std, ts)
 
@@ -338,54 +343,6 @@ def _relevelled(t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimat
     if "message" not in estimate.identifiability:
         ident.pop("message", None)
     return replace(again, identifiability=ident), static
-
-
-def _noise_levels(estimate: PairEstimate, static: tuple[float, float] | None
-                  ) -> tuple[float, float]:
-    """The noise levels the residuals are judged by: those the estimation used, sensor 2's
-    in sensor 1's calibration under the affine static model."""
-    used = estimate.details.get("noise_std_used", estimate.noise_std)
-    levels = (float(used[0]), float(used[1]))  # type: ignore[index]
-    return levels if static is None else (levels[0], abs(static[0]) * levels[1])
-
-
-def _reconstruct(
-    t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate, mode: str,
-    hysteresis: bool, static: tuple[float, float] | None,
-) -> Reconstruction:
-    heat = estimate.time_constants_heat
-    cool = estimate.time_constants_cool
-    hysteretic = hysteresis and heat is not None and cool is not None
-    model = estimate.flow_model
-    schedule = None if model is None or model.kind == "constant" else 1.0 / model.psi
-    # a schedule's noise (a tracked one's, tracking.split_noise; a flow column's own) is part
-    # of the gas's uncertainty: the error over T_g_std (to the bandwidth) had an RMS of 1.7-3.6
-    # without it on separately simulated unsheathed tracked pairs, 0.7-1.2 with it (README)
-    log_std = model.schedule_noise if model is not None else 0.0
-    try:
-        result = reconstruct(
-            t1, t2, ts,
-            heat[0] if hysteretic and heat is not None else estimate.time_constants[0],
-            heat[1] if hysteretic and heat is not None else estimate.time_constants[1],
-            mode=mode, noise_std=estimate.noise_std,
-            taus1_cool=cool[0] if hysteretic and cool is not None else None,
-            taus2_cool=cool[1] if hysteretic and cool is not None else None,
-            relative_static=static, schedule=schedule,
-            schedule_log_std=log_std,
-        )
-    except ValueError as exc:
-        # the inputs were validated above: what is left is the data not supporting the
-        # reconstruction with these time constants (exit 3, not 2)
-        raise EstimationError(
-            f"reconstruction ({mode}) with time constants "
-            f"{_format_taus(estimate.time_constants)} failed: {exc}"
-        ) from None
-    if result.gas.shape != t1.shape:
-        raise EstimationError(
-            f"reconstruction returned {result.gas.shape[0] if result.gas.ndim else 0} samples "
-            f"for {t1.size} inputs"
-        )
-    return result
 
 
 def load_pair(

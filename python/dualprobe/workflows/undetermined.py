@@ -21,8 +21,9 @@ import numpy as np
 __all__ = ["LIMIT", "WINDOW", "Cause", "Undetermined", "undetermined"]
 
 # "schedule": a rival schedule's gas (spread: half the distance); "common part": the gas with
-# both second stages one standard uncertainty shorter (spread: all of it)
-Cause = Literal["schedule", "common part"]
+# both second stages one standard uncertainty shorter (spread: all of it); "order": the
+# second-order gas that first order replaced for its undetermined common part (half)
+Cause = Literal["schedule", "common part", "order"]
 
 # s: a manoeuvre's length on a drive cycle (accelerations and cruises of 4-80 s), so that one
 # stretch the data do not determine is not averaged away over a 20-min record, while the rows'
@@ -65,6 +66,14 @@ class Undetermined:
                 "without it (T_g_std includes it); the stages may be sized several times too "
                 "long (alike sheaths, or sheaths that follow the flow otherwise than the "
                 "elements): compare with --order 1")
+        if self.cause == "order":
+            return (
+                "first order was taken where the second-order fit's common part is not "
+                f"determined (note: order chosen by evidence): that fit's gas lies "
+                f"{2.0 * self.kelvin:.3g} K RMS from this one over {WINDOW:g} s from t = "
+                f"{self.start:.0f} s, {self.ratio:.2g} times the uncertainty stated without "
+                "it, and the data do not say which is nearer (T_g_std includes half that "
+                "distance); the sheaths' datasheet tells how long a lag both sensors share")
         return (
             f"the tracked time constants are not determined by these data: another schedule "
             f"explains both signals as well and gives a gas {2.0 * self.kelvin:.3g} K RMS away "
