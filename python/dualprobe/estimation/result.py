@@ -38,3 +38,9 @@ class PairEstimate:
     details: dict[str, object] = field(default_factory=dict)
     flow_model: FlowModel | None = None  # how the time constants vary: a flow law or tracked
     confidence: Confidence | None = None  # standard uncertainties and identifiability
+
+    @property
+    def stage_on_each(self) -> bool:
+        """Order 2 with a second stage on each sensor (their common part cancels from the
+        cross-relation)."""
+        return self.order == 2 and all(len(taus) == 2 for taus in self.time_constants)

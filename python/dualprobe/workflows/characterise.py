@@ -30,7 +30,6 @@ from dualprobe.workflows.order_choice import (
 )
 from dualprobe.workflows.readings import (
     check_excitation,
-    interpolated,
     parse_noise_std,
     prepare_readings,
 )
@@ -147,7 +146,7 @@ def characterise_arrays(
     if scale != 1.0:
         t2 = t2 * scale
         sigma = None if sigma is None else (sigma[0], sigma[1] * scale)
-    t1, t2, sigma, held = prepare_readings(t1, t2, ts, sigma, columns, time)
+    t1, t2, sigma, held, refreshed = prepare_readings(t1, t2, ts, sigma, columns, time)
     if scale != 1.0:
         held = (*held, scale_note(scale, columns))
     check_excitation(t1, t2, columns)
@@ -270,7 +269,7 @@ def characterise_arrays(
     levels = noise_levels(estimate, static)
     # the paper's method has no misfit statistic of its own: its residuals are checked
     check = (check_model(estimate, residuals, levels, (t1, t2), columns, doubt,
-                         refreshed=interpolated(readings, ts))
+                         refreshed=refreshed)
              if svf or residuals is not None else None)
     if time is None:
         time = np.arange(t1.size, dtype=np.float64) * ts

@@ -235,10 +235,8 @@ def check_model(estimate: PairEstimate, residuals: tuple[np.ndarray, np.ndarray]
     # second stage on each sensor. Separate generator, 2 Hz, held for 3 rows, unsheathed,
     # the mass flow: halves at 0.15 / 2.54, 0.64 / 3.51 and 0.39 / 1.38 times the noise
     # (26, 14, 11 apart), the gas 0.60x, 0.61x, 0.77x the oracle.
-    guarded = not refreshed or (estimate.order == 2 and all(
-        len(taus) == 2 for taus in estimate.time_constants))
     if (regimes > GAP_THRESHOLD and model is not None and not statistic > GAP_THRESHOLD
-            and guarded):
+            and (estimate.stage_on_each or not refreshed)):
         # the whole record's misfit is an average (flow_split: near-equal sheaths sized 3x by a
         # law 0.34 % off, misfit 1.15 overall, 0.83 / 1.56 at low / high flow, 12 apart)
         low, high = (model.evidence[f"misfit_{k}_flow"] for k in ("low", "high"))

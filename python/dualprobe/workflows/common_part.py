@@ -40,7 +40,7 @@ def common_part_doubt(estimate: PairEstimate, gas: np.ndarray, gas_std: np.ndarr
     uncertainties, or the moved model gives no gas."""
     taus = estimate.time_constants
     conf = estimate.confidence
-    if estimate.order != 2 or conf is None or any(len(t) != 2 for t in taus):
+    if not estimate.stage_on_each or conf is None:
         return None
     stds = [conf.std.get(f"tau{i + 1}_1", np.nan) for i in (0, 1)]
     if not all(np.isfinite(std) and std > 0.0 for std in stds):

@@ -11,13 +11,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from dualprobe.io import EstimationError, InputError
-from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, refreshes, unhold
+from dualprobe.models.held import SENSOR_REFRESH, held_noise_std, is_held, unhold
 from dualprobe.models.jitter import equivalent_noise_std, jitter_variance
 from dualprobe.models.noise import ORDER_ESTIMATION
 from dualprobe.models.spikes import MAX_RUN, MAX_SHARE, Spikes, despike
 from dualprobe.models.stuck import refuse_stuck
 
-__all__ = ["check_excitation", "interpolated", "parse_noise_std", "prepare_readings"]
+__all__ = ["check_excitation", "parse_noise_std", "prepare_readings"]
 
 _LISTED = 3  # spikes named in a note
 
@@ -39,8 +39,9 @@ def _spike_note(column: str, spikes: Spikes, time: np.ndarray) -> str:
 def prepare_readings(
     t1: np.ndarray, t2: np.ndarray, ts: float, sigma: tuple[float, float] | None,
     columns: tuple[str, str], time: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, tuple[str, ...]]:
-    """(t1, t2, noise levels, notes); an :class:`InputError` naming a stuck channel
+) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None, tuple[str, ...], bool]:
+    """(t1, t2, noise levels, notes, whether a sensor was interpolated between its logger's
+    refreshes); an :class:`InputError` naming a stuck channel
     (:func:`dualprobe.models.stuck.find_stuck`) and the longest stretch without one.
 
     A sensor whose logger holds its readings (:func:`dualprobe.models.held.unhold`) is
@@ -78,7 +79,7 @@ def prepare_readings(
                          "the record, and each row's noise counted as its slope makes it in the "
                          "reconstruction")
     if all(rows == 1 for _, rows in held) and not any(jitters):
-        return values[0], values[1], sigma, tuple(notes)  # noise: once, by the estimation
+        return values[0], values[1], sigma, tuple(notes), False  # noise: by the estimation
     levels = []
     for index, (x, (_, rows), column) in enumerate(zip((t1, t2), held, columns, strict=True)):
         # held_noise_std is estimate_noise_std on a sensor that is not held
@@ -95,14 +96,8 @@ def prepare_readings(
                          "refreshing slower than the rows): interpolated between its refreshes, "
                          f"its noise ({level / math.sqrt(rows):.3g} K per reading) counted once "
                          f"per refresh ({level:.3g} K per row in the noise std)")
-    return values[0], values[1], (levels[0], levels[1]), tuple(notes)
-
-
-def interpolated(readings: tuple[np.ndarray, np.ndarray], ts: float) -> bool:
-    """Whether :func:`prepare_readings` interpolates either of these readings between its
-    logger's refreshes (a regular hold)."""
-    return any(refreshes(np.asarray(x, dtype=float), ts, SENSOR_REFRESH)[1] > 1
-               for x in readings)
+    refreshed = any(rows > 1 for _, rows in held)
+    return values[0], values[1], (levels[0], levels[1]), tuple(notes), refreshed
 
 
 def parse_noise_std(noise_std: float | Sequence[float] | None) -> tuple[float, float] | None:
