@@ -57,6 +57,7 @@ def reconstruct(
     relative_static: tuple[float, float] | None = None,
     schedule: np.ndarray | None = None,
     schedule_log_std: float = 0.0,
+    near: SmootherFit | None = None,
 ) -> Reconstruction:
     """Gas temperature at the sample instants (NaN where it cannot be formed).
 
@@ -76,6 +77,8 @@ def reconstruct(
     time constants' relative error, e.g. the part of a tracked schedule that follows the
     noise): ``gas_std`` then adds, in quadrature, half the change of the gas between the
     schedule moved by this factor up and down (all else held; the delta method, row by row).
+    ``near``: the smoother's fit with nearby time constants, to search from
+    (:func:`~dualprobe.reconstruction.smoother.fit_smoother`).
     """
     if mode not in MODES:
         raise ValueError(f"reconstruct_pair: mode must be one of {', '.join(MODES)}, got {mode!r}")
@@ -118,6 +121,7 @@ def reconstruct(
         taus1_cool=cool[0],
         taus2_cool=cool[1],
         schedule=schedule,
+        near=near,
     )
     moved = None
     if schedule is not None and schedule_log_std > 0.0:

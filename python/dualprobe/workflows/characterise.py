@@ -233,7 +233,7 @@ def characterise_arrays(
         if doubt is None and result.gas_std is not None:
             doubt = common_part_doubt(estimate, result.gas, result.gas_std, ts, lambda moved:
                                       estimate_gas(t1, t2, ts, moved, reconstruction,
-                                                   hysteresis, static).gas)
+                                                   hysteresis, static, result).gas)
         return estimate, result, doubt
 
     estimate, result, doubt = with_gas(estimate, static, result)

@@ -23,11 +23,12 @@ def format_taus(taus: Sequence[Sequence[float]]) -> str:
 
 def estimate_gas(
     t1: np.ndarray, t2: np.ndarray, ts: float, estimate: PairEstimate, mode: str,
-    hysteresis: bool, static: tuple[float, float] | None,
+    hysteresis: bool, static: tuple[float, float] | None, near: Reconstruction | None = None,
 ) -> Reconstruction:
     """The reconstruction (``mode``) with ``estimate``'s time constants (heating and cooling
     where ``hysteresis``), on its flow model's schedule with that schedule's noise, sensor 2
-    mapped by ``static``; an :class:`EstimationError` where the data do not support it."""
+    mapped by ``static``; an :class:`EstimationError` where the data do not support it.
+    ``near``: the gas of nearby time constants, whose smoother this one starts from."""
     heat = estimate.time_constants_heat
     cool = estimate.time_constants_cool
     hysteretic = hysteresis and heat is not None and cool is not None
@@ -46,7 +47,7 @@ def estimate_gas(
             taus1_cool=cool[0] if hysteretic and cool is not None else None,
             taus2_cool=cool[1] if hysteretic and cool is not None else None,
             relative_static=static, schedule=schedule,
-            schedule_log_std=log_std,
+            schedule_log_std=log_std, near=None if near is None else near.fit,
         )
     except ValueError as exc:
         # the inputs were validated above: what is left is the data not supporting the
