@@ -21,7 +21,7 @@ import numpy as np
 from dualprobe.estimation import engine, flow, level
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.result import PairEstimate
-from dualprobe.estimation.settings import GAP_THRESHOLD
+from dualprobe.estimation.settings import GAP_THRESHOLD, SHEATHED_SCHEDULE_ERROR
 
 __all__ = ["REFINE_GRID", "FlowModel", "RunSvf", "effective_rows", "explains_data", "fit_of",
            "flow_law", "scheduled_misfit", "window_fits", "windowed_time_constants"]
@@ -85,11 +85,13 @@ class FlowModel:
         return abs(self.exponent) * noise if math.isfinite(noise) else 0.0
 
     @property
-    def schedule_noise(self) -> float:
-        """The schedule's noise in log psi (RMS) that the gas's uncertainty carries: a tracked
-        one's (``psi_noise``) and a flow law's (``psi_flow_noise``); 0 where neither is known."""
-        noise = self.psi_noise
-        return math.hypot(noise if math.isfinite(noise) else 0.0, self.psi_flow_noise)
+    def schedule_error(self) -> float:
+        """The schedule's error in log psi (RMS) that the gas's uncertainty carries: a tracked
+        one's noise (``psi_noise``), the sheathed path's measured error beyond it and a flow
+        law's noise (``psi_flow_noise``); 0 where none is known."""
+        noise = self.psi_noise if math.isfinite(self.psi_noise) else 0.0
+        path = SHEATHED_SCHEDULE_ERROR if self.sheathed_path else 0.0
+        return math.hypot(noise, path, self.psi_flow_noise)
 
     @property
     def sheathed_path(self) -> bool:

@@ -11,17 +11,22 @@ from typing import Any
 import numpy as np
 
 from dualprobe.estimation import PairEstimate
+from dualprobe.estimation.settings import SHEATHED_SCHEDULE_ERROR
 from dualprobe.reconstruction import Bandwidth
 from dualprobe.report.json import jsonable
 from dualprobe.workflows.checks import ModelCheck
 
-__all__ = ["TRACKED_NOISE_STD_NOTE", "TRACKED_STD_NOTE", "Characterisation"]
+__all__ = ["SHEATHED_STD_NOTE", "TRACKED_NOISE_STD_NOTE", "TRACKED_STD_NOTE", "Characterisation"]
 
 TRACKED_STD_NOTE = ("T_g_std assumes these tracked time constants: their own error, which "
                     "can dominate the gas's without a flow signal, is not in it")
 TRACKED_NOISE_STD_NOTE = ("T_g_std includes the part of the tracked time constants' error that "
                           "follows the noise (psi_noise), not a bias of theirs: without a flow "
                           "signal it can still be too small")
+SHEATHED_STD_NOTE = (f"T_g_std includes the tracked time constants' noise (psi_noise) and the "
+                     f"typical error of time constants tracked through sheaths "
+                     f"({SHEATHED_SCHEDULE_ERROR:.0%} RMS per row on simulated drive cycles), "
+                     "not this record's own: it can still be too small")
 
 
 def _fmt(value: float, std: float | None = None) -> str:
@@ -317,7 +322,9 @@ class Characterisation:
                 # bandwidth over T_g_std: an RMS of 0.7-1.4 tracked with psi_noise in T_g_std
                 # (unsheathed; 1.7-3.6 without it), up to 4.6 where a sheath was absorbed
                 noisy = math.isfinite(model.psi_noise)
-                lines.append(f"  note: {TRACKED_NOISE_STD_NOTE if noisy else TRACKED_STD_NOTE}")
+                note = (SHEATHED_STD_NOTE if model.sheathed_path
+                        else TRACKED_NOISE_STD_NOTE if noisy else TRACKED_STD_NOTE)
+                lines.append(f"  note: {note}")
         if check is not None:
             lines.extend(check.summary_lines())
         return "\n".join(lines)

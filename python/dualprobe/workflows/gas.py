@@ -34,10 +34,11 @@ def estimate_gas(
     hysteretic = hysteresis and heat is not None and cool is not None
     model = estimate.flow_model
     schedule = None if model is None or model.kind == "constant" else 1.0 / model.psi
-    # a schedule's noise (a tracked one's, tracking.split_noise; a flow column's own) is part
-    # of the gas's uncertainty: the error over T_g_std (to the bandwidth) had an RMS of 1.7-3.6
-    # without it on separately simulated unsheathed tracked pairs, 0.7-1.2 with it (README)
-    log_std = model.schedule_noise if model is not None else 0.0
+    # a schedule's error (a tracked one's noise, tracking.split_noise, and the sheathed path's
+    # measured bias; a flow column's own noise) is part of the gas's uncertainty: the error
+    # over T_g_std (to the bandwidth) had an RMS of 1.7-3.6 without it on separately simulated
+    # unsheathed tracked pairs, 0.7-1.2 with it (README); sheathed, see field.py
+    log_std = model.schedule_error if model is not None else 0.0
     try:
         result = reconstruct(
             t1, t2, ts,
