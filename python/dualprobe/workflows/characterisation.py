@@ -23,8 +23,8 @@ TRACKED_STD_NOTE = ("T_g_std assumes these tracked time constants: their own err
 TRACKED_NOISE_STD_NOTE = ("T_g_std includes the part of the tracked time constants' error that "
                           "follows the noise (psi_noise), not a bias of theirs: without a flow "
                           "signal it can still be too small")
-SHEATHED_STD_NOTE = (f"T_g_std includes the tracked time constants' noise (psi_noise) and the "
-                     f"typical error of time constants tracked through sheaths "
+SHEATHED_STD_NOTE = ("T_g_std includes the tracked time constants' noise (psi_noise) and the "
+                     "typical error of time constants tracked through sheaths "
                      f"({SHEATHED_SCHEDULE_ERROR:.0%} RMS per row on simulated drive cycles), "
                      "not this record's own: it can still be too small")
 
