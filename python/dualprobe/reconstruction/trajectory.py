@@ -86,13 +86,18 @@ class Trajectory:
         pw = np.matmul(np.swapaxes(phi, 1, 2), w_inv)  # Phi^T W per slice (S, n, n)
         pwp = np.matmul(pw, phi)  # Phi^T W Phi
         slices = model.slices(modes)
+
+        def per_interval(a: np.ndarray) -> np.ndarray:
+            """Each interval's slice of ``a`` (one slice: broadcast, not copied N times)."""
+            return a[0] if a.shape[0] == 1 else a[slices]
+
         lam3 = lam[:, None, None]
         # blocks of the matrix: diagonal (N, n, n) and above the diagonal (N-1, n, n)
         diag = np.empty((big_n, n, n))
         diag[:] = self.hrh  # (n, n), or (N, n, n) with rows of their own noise
-        diag[:-1] += lam3 * (pwp[0] if phi.shape[0] == 1 else pwp[slices])
-        diag[1:] += lam3 * (w_inv[0] if phi.shape[0] == 1 else w_inv[slices])
-        off = -lam3 * (pw[0] if phi.shape[0] == 1 else pw[slices])
+        diag[:-1] += lam3 * per_interval(pwp)
+        diag[1:] += lam3 * per_interval(w_inv)
+        off = -lam3 * per_interval(pw)
         # the LAPACK upper band in column-major order is, row by row, (N, n, 2n) in C order:
         # block k's column c holds its rows p <= c at u + p - c and the block above at
         # n - 1 + p - c (whole slices, not element scatters: 3x faster at recording scale)
