@@ -91,3 +91,27 @@ def test_held_readings_do_not_split_the_flow_regimes_of_a_first_order_pair(
     assert isinstance(gains, tuple)
     # the issue's bound with the flow (measured 0.60-0.77x: the oracle is given the held rows)
     assert _rmse(result.gas_estimate, rec.gas) <= 1.5 * _oracle_rmse(rec, gains)
+
+
+def test_a_tracked_schedule_is_held_where_the_record_ends_standing_still() -> None:
+    """The same record without the flow: the gas idles over the last 2 min, where the readings
+    move by 0.4-0.9 K per 20 s through 0.1 K steps and holds; the tracked time constant rose
+    4-fold there and the adapted one 7.8-fold (the truth: constant), over a third of the
+    record, and the pair was refused ("trim the record"). Held where the readings stand still
+    over the slower time constant either side (estimation/still.py): 1.67x the oracle,
+    adequate."""
+    gains = (0.979, 1.026)
+    rec = record(133000, tau=9.8, ratio=3.09, m=0.44, rate=25.0, gains=gains, noise=0.05,
+                 adc=0.1, jitter=0.01, hold=3, duration=600.0)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t)
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "tracked"
+    assert model.evidence["held_share"] > 0.0
+    # the held end at the last moving row's value: flat over the still rows
+    tail = model.psi[-rec.t1.size // 100:]
+    assert float(tail.max() / tail.min()) == pytest.approx(1.0, abs=1e-9)
+    assert result.model_check is not None and result.model_check.adequate, (
+        result.model_check.reasons)
+    assert result.gas_estimate is not None
+    # the issue's bound without the flow
+    assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * _oracle_rmse(rec, gains)

@@ -7,7 +7,8 @@ and the joint MAP of psi, :mod:`dualprobe.estimation.psi_map`). The result is a 
 per sample, as with a flow law (:mod:`dualprobe.estimation.field`). A first-order tracked psi
 carries ``psi_noise`` in its evidence (:func:`tracking.split_noise`: how much of it follows the
 noise), which the model check holds to 5 % (``settings.PSI_NOISE_LIMIT``); it is then freed
-where the data repeat a freer psi (:mod:`dualprobe.estimation.adaptive`).
+where the data repeat a freer psi (:mod:`dualprobe.estimation.adaptive`). Every tracked
+schedule is held where the gas stands still (:mod:`dualprobe.estimation.still`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from dualprobe.estimation import adaptive, crossfit, flow, psi_map, tracking
+from dualprobe.estimation import adaptive, crossfit, flow, psi_map, still, tracking
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.field import (
     FlowModel,
@@ -124,6 +125,8 @@ def track_without_flow(
         chosen = _sheathed(t1, t2, base, chosen, run, stats)
     # a first-order tracked psi freed where the data repeat it (estimation/adaptive.py)
     chosen = _adapted(t1, t2, chosen, run)
+    # and held where the gas stands still (estimation/still.py)
+    chosen = _held(t1, t2, chosen, run)
     # does the tracked schedule have a rival that explains the data as well? (rival.py)
     return chosen[0], rival_schedule(t1, t2, chosen[0], chosen[1], run)
 
@@ -150,6 +153,29 @@ def _adapted(t1: np.ndarray, t2: np.ndarray, chosen: tuple[PairEstimate, FlowMod
     if "psi_noise" in evidence:  # (NaN, an unknown noise, stays unknown)
         evidence["psi_noise"] = math.hypot(evidence["psi_noise"], found.noise)
     return candidate, dataclasses.replace(model, psi=found.psi, evidence=evidence)
+
+
+def _held(t1: np.ndarray, t2: np.ndarray, chosen: tuple[PairEstimate, FlowModel],
+          run: RunSvf) -> tuple[PairEstimate, FlowModel]:
+    """``chosen`` with a tracked schedule held where the gas stands still
+    (:func:`still.hold_still`, over the slower sensor's longest time constant at the median
+    psi either side), where the engine's fit on it explains the data or fits no worse (the
+    held rows' columns are noise, so the fit barely moves); ``held_share`` the rows held."""
+    estimate, model = chosen
+    if model.kind != "tracked":
+        return chosen
+    longest = max(max(taus) for taus in estimate.time_constants) / float(np.median(model.psi))
+    reach = math.ceil(longest / fit_of(estimate).ts)
+    found = still.hold_still(model.psi, (t1, t2), reach, max(estimate.noise_std))
+    if found is None:
+        return chosen
+    held, share = found
+    candidate = run(held)
+    if candidate.status != "ok" or not (explains_data(candidate) or fit_of(candidate).misfit
+                                        <= fit_of(estimate).misfit):
+        return chosen
+    evidence = {**model.evidence, "held_share": share, "misfit_held": fit_of(candidate).misfit}
+    return candidate, dataclasses.replace(model, psi=held, evidence=evidence)
 
 
 def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,

@@ -27,7 +27,7 @@ import math
 import numpy as np
 import scipy.ndimage
 
-from dualprobe.estimation import GAP_THRESHOLD, PairEstimate
+from dualprobe.estimation import GAP_THRESHOLD, PairEstimate, still
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.settings import RECORD_FRACTION
 from dualprobe.io import EstimationError
@@ -83,21 +83,6 @@ def refuse_opposed(static: tuple[float, float] | None, columns: tuple[str, str])
             "(an inverted channel, a reversed thermocouple) or is not a temperature")
 
 
-# Readings whose range over a median time constant either side stays within this many noise
-# standard deviations: the gas stood still there (a 7 s idle start of a 60 s drive cycle: 0.28 K,
-# 5.6 standard deviations, where the tracked time constant rose 5-1700 times its median; the
-# range of white noise over 500 rows is about 6.5; a drive cycle's swings are hundreds)
-_STILL = 10.0
-
-
-def _movement(readings: tuple[np.ndarray, np.ndarray], row: int, share: float) -> float:
-    """The larger range of the two readings within ``share`` of the record either side of
-    ``row``."""
-    reach = max(1, math.ceil(share * readings[0].size))
-    spans = [r[max(0, row - reach):row + reach + 1] for r in readings]
-    return max(float(np.ptp(r)) if r.size else math.inf for r in spans)
-
-
 def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[str, str],
                        residuals: tuple[np.ndarray, np.ndarray] | None,
                        readings: tuple[np.ndarray, np.ndarray], gas: np.ndarray | None = None,
@@ -119,11 +104,12 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
             # 616 s) and refused with "record longer", which the record did not need
             row = int(np.argmin(psi))
             at = row / max(psi.size - 1, 1) * duration
-            moved = _movement(readings, row, max(taus) / float(np.median(psi)) / duration)
+            reach = math.ceil(max(taus) / float(np.median(psi)) / duration * psi.size)
+            moved = float(still.movement(readings, reach)[row])
             cause = (f"the readings move by only {moved:.2g} K there: the gas stands still, "
                      "so nothing there determines a time constant; trim the record to where "
                      "the temperature changes (--window)"
-                     if moved < _STILL * max(estimate.noise_std) else
+                     if moved < still.STILL_RANGE * max(estimate.noise_std) else
                      "the tracking absorbed something the model lacks (one sensor drifting "
                      "against the other, a channel that stops following the gas), not a time "
                      "constant; check both channels there")
