@@ -107,6 +107,7 @@ def test_a_tracked_schedule_is_held_where_the_record_ends_standing_still() -> No
     model = result.estimate.flow_model
     assert model is not None and model.kind == "tracked"
     assert model.evidence["held_share"] > 0.0
+    assert "the gas stood still over" in result.summary()
     # the held end at the last moving row's value: flat over the still rows
     tail = model.psi[-rec.t1.size // 100:]
     assert float(tail.max() / tail.min()) == pytest.approx(1.0, abs=1e-9)

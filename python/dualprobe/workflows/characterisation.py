@@ -262,6 +262,11 @@ class Characterisation:
                           if math.isfinite(noise) else "")
                 lines.append(f"  time constants vary over the record (no flow given): "
                              f"x{lo:.3g} to x{hi:.3g} of the average (5-95 %){spread}")
+                held = model.evidence.get("held_share", 0.0)
+                if held > 0.0:
+                    lines.append(f"  note: the gas stood still over {held:.1%} of the rows: the "
+                                 "time constants there are held from the rows around them, "
+                                 "not determined by the data")
             else:
                 exponent = _fmt(model.exponent, self._std("exponent")
                                 if model.kind == "power_law" else None)
