@@ -65,13 +65,27 @@ def test_a_tracked_dip_where_the_gas_stands_still_says_so() -> None:
     at 0 s, was refused blaming a drifting sensor; the message now names the still gas and the
     remedy (--window). Within a median time constant either side of the dip (25 s here) the
     readings move by white noise's range over 500 rows, about 6.5 standard deviations, under
-    refusals._STILL = 10; the drive cycle's swings by ~2000."""
+    still.STILL_RANGE = 10; the drive cycle's swings by ~2000."""
     with pytest.raises(EstimationError) as caught:
         refuse_implausible(_estimate("tracked", _dip(0.041)), _DURATION, _COLUMNS, None,
                            _readings(still=True))
     message = str(caught.value)
     assert "the gas stands still" in message and "--window" in message
     assert "drifting" not in message and "record longer" not in message
+
+
+def test_a_tracked_dip_on_unequal_gains_names_the_map() -> None:
+    """A tracked dip where the readings move, on a static map far from equal gains (T1 = 0.87
+    T2 + 53 K): the gain and the time constants explain such readings alike without the flow
+    (test_field_loggers.py), so the refusal names the map, not the channels; on a map within
+    3 % it still blames what the model lacks."""
+    for static, named in (((0.87, 53.0), True), ((1.01, -2.0), False)):
+        with pytest.raises(EstimationError) as caught:
+            refuse_implausible(_estimate("tracked", _dip(0.041)), _DURATION, _COLUMNS, None,
+                               _readings(still=False), static=static)
+        message = str(caught.value)
+        assert ("T_m1 = " in message and "far from equal sensors'" in message) is named
+        assert ("drifting" in message) is not named
 
 
 @pytest.mark.parametrize("kind,depth,taus", [
