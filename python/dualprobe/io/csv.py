@@ -5,7 +5,11 @@ Every problem with an input file is reported as an :class:`InputError` whose mes
 line naming the file and, where it applies, the line of the file (1-based, header is line 1, as a
 text editor shows it) and the column. The delimiter is a comma, or a semicolon / tab when the
 header line has none; blank lines and whitespace around cells are ignored; a units row under
-the header (``s,degC,degC``) is refused (put the unit in the header: ``Time (ms)``).
+the header (``s,degC,degC``) is refused (put the unit in the header: ``Time (ms)``). With a
+semicolon or tab delimiter the numbers may have a decimal comma (``512,37``: the European
+export, told from the first data row). A time column of ISO 8601 date-times
+(``2026-12-01T10:00:00.125``, a space for the ``T``, a zone ``Z`` / ``+01:00`` on every stamp
+or on none) becomes seconds from its first stamp, as a Parquet timestamp column does.
 
 Fast path: the header is read here, the body by ``pyarrow.csv`` straight into float64 columns
 (no NaN-by-default strings; an empty cell is NaN, a missing reading: see
@@ -29,7 +33,7 @@ import numpy as np
 
 from dualprobe.io.errors import InputError
 from dualprobe.io.table import Table, resolve_columns
-from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE, stamp_resolution
+from dualprobe.io.timebase import IRREGULAR_TIME_TOLERANCE, seconds_from_first, stamp_resolution
 
 __all__ = [
     "IRREGULAR_TIME_TOLERANCE",
@@ -40,6 +44,10 @@ __all__ = [
 
 _BOM = b"\xef\xbb\xbf"
 _NON_BLANK = re.compile(rb"\S")
+_DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+([eE][+-]?\d+)?")
+_STAMP = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?"
+                    r"(?P<zone>Z|[+-]\d{2}:?\d{2})?")
+_STAMP_NOTE = "ISO 8601 date and time"
 
 
 def _one_line(text: str, limit: int = 60) -> str:
@@ -81,6 +89,38 @@ def _delimiter(header_line: str) -> str:
         if candidate in header_line:
             return candidate
     return ","
+
+
+def _decimal_comma(delimiter: str, cells: list[str]) -> bool:
+    """Whether the numbers have a decimal comma: a semicolon or tab delimiter and a cell of
+    the first data row written like ``512,37``."""
+    return delimiter != "," and any(_DECIMAL_COMMA.fullmatch(cell) for cell in cells)
+
+
+def _stamp_type(cell: str) -> Any:
+    """The Arrow type of a time column whose first cell is ``cell``: a timestamp (zoned: UTC)
+    for an ISO 8601 date-time, else None (numbers)."""
+    import pyarrow as pa
+
+    found = _STAMP.fullmatch(cell)
+    if found is None:
+        return None
+    return pa.timestamp("ns", tz="UTC" if found.group("zone") else None)
+
+
+def _stamp_seconds(path: Path, name: str, column: Any, file_line: Any) -> np.ndarray:
+    """A parsed timestamp column (Arrow, nulls for empty cells) as seconds from its first
+    stamp; an empty cell is refused naming its line."""
+    import pyarrow as pa
+
+    ticks = column.cast(pa.int64())
+    if ticks.null_count:
+        valid = np.concatenate([chunk.is_valid().to_numpy(zero_copy_only=False)
+                                for chunk in ticks.chunks])
+        first = int(np.flatnonzero(~valid)[0])
+        raise InputError(f"{path}: line {file_line(first)}, column {name!r}: missing time stamp")
+    return seconds_from_first(np.concatenate([chunk.to_numpy() for chunk in ticks.chunks]),
+                              "ns")
 
 
 def _check_header(path: Path, header: list[str], line: int) -> None:
@@ -134,10 +174,33 @@ def _is_number(cell: str) -> bool:
     return True
 
 
+def _parse_stamps(path: Path, name: str, stamp: Any, cells: list[str], lines: list[int]
+                  ) -> np.ndarray:
+    """A time column of ISO 8601 date-times (``stamp`` its type) as seconds from the first."""
+    import pyarrow as pa
+
+    for cell, line in zip(cells, lines, strict=True):
+        found = _STAMP.fullmatch(cell)
+        where = f"{path}: line {line}, column {name!r}"
+        if not cell:
+            raise InputError(f"{where}: missing time stamp")
+        if found is None:
+            raise InputError(f"{where}: not an {_STAMP_NOTE}: {_one_line(cell)}")
+        if bool(found.group("zone")) != (stamp.tz is not None):
+            raise InputError(f"{where}: {_one_line(cell)} has {'no ' if stamp.tz else ''}zone "
+                             "where the first stamp has " + ("one" if stamp.tz else "none")
+                             + "; give every stamp a zone or none")
+    return _stamp_seconds(path, name, pa.chunked_array([pa.array(cells).cast(stamp)]),
+                          lambda row: lines[row])
+
+
 def _parse_column(
-    path: Path, name: str, index: int, data: list[list[str]], lines: list[int]
+    path: Path, name: str, index: int, data: list[list[str]], lines: list[int],
+    decimal_comma: bool = False,
 ) -> np.ndarray:
     cells = [row[index] or "nan" for row in data]  # an empty cell is a missing reading
+    if decimal_comma:
+        cells = [cell.replace(",", ".") for cell in cells]
     try:
         return np.array(cells, dtype=np.float64)
     except ValueError:
@@ -159,18 +222,26 @@ def _parse_column(
 
 def _slow_columns(
     path: Path, requested: list[str], time: str | None
-) -> tuple[list[str], dict[str, str], dict[str, np.ndarray], list[int]]:
+) -> tuple[dict[str, str], dict[str, np.ndarray], list[int], bool]:
+    """(names, columns, file lines, whether the time column held date-times)."""
     header, data, lines = read_csv_table(path)
     names = resolve_columns(str(path), header, requested, time=time)
     width = len(header)
     for row, line in zip(data, lines, strict=True):
         if len(row) != width:
             raise InputError(f"{path}: line {line}: {len(row)} fields, header has {width}")
+    text = _read_bytes(path).decode("utf-8-sig")
+    delimiter = _delimiter(next((line for line in text.splitlines() if line.strip()), ""))
+    comma = _decimal_comma(delimiter, data[0])
+    stamp = _stamp_type(data[0][header.index(names[time])]) if time else None
     parsed = {
-        wanted: _parse_column(path, actual, header.index(actual), data, lines)
+        wanted: (_parse_stamps(path, actual, stamp, [row[header.index(actual)] for row in data],
+                               lines)
+                 if stamp is not None and wanted == time else
+                 _parse_column(path, actual, header.index(actual), data, lines, comma))
         for wanted, actual in names.items()
     }
-    return header, names, parsed, lines
+    return names, parsed, lines, stamp is not None
 
 
 def _split_header(raw: bytes) -> tuple[str, int, int]:
@@ -211,10 +282,20 @@ def _float64(column: Any) -> np.ndarray:
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
+def _first_cells(raw: bytes, body: int, delimiter: str) -> list[str]:
+    """The stripped cells of the body's first non-blank line."""
+    for line in raw[body:].split(b"\n", 64):
+        text = line.decode("utf-8").strip()
+        if text:
+            return [cell.strip() for cell in next(csv.reader([text], delimiter=delimiter))]
+    return []
+
+
 def _fast_columns(
     path: Path, raw: bytes, requested: list[str], time: str | None
-) -> tuple[dict[str, str], dict[str, np.ndarray], int, int] | None:
-    """The columns through pyarrow, or None when the line-by-line reader must decide."""
+) -> tuple[dict[str, str], dict[str, np.ndarray], int, int, bool] | None:
+    """The columns through pyarrow (and whether the time column held date-times), or None
+    when the line-by-line reader must decide."""
     import pyarrow as pa
     import pyarrow.csv as pacsv
 
@@ -226,13 +307,21 @@ def _fast_columns(
         raise InputError(f"{path}: header only, no data rows (header: {', '.join(header)})")
     names = resolve_columns(str(path), header, requested, time=time)
     actual = list(dict.fromkeys(names.values()))
+    first = _first_cells(raw, body, delimiter)
+    if len(first) != len(header):
+        return None  # a ragged row: the line-by-line reader names it
+    stamp = _stamp_type(first[header.index(names[time])]) if time else None
+    types = {name: pa.float64() for name in actual}
+    if stamp is not None:
+        types[names[time]] = stamp
     try:
         table = pacsv.read_csv(
             pa.py_buffer(memoryview(raw)[body:]),
             read_options=pacsv.ReadOptions(column_names=header),
             parse_options=pacsv.ParseOptions(delimiter=delimiter),
             convert_options=pacsv.ConvertOptions(
-                column_types={name: pa.float64() for name in actual},
+                column_types=types,
+                decimal_point="," if _decimal_comma(delimiter, first) else ".",
                 include_columns=actual,
                 # an empty cell is a missing reading (NaN; io.missing decides what it costs)
                 null_values=[""],
@@ -247,8 +336,14 @@ def _fast_columns(
         return None
     if table.num_rows == 0:
         return None
-    columns = {wanted: _float64(table.column(name)) for wanted, name in names.items()}
-    return names, columns, header_line, body
+
+    def file_line(row: int) -> int:
+        return int(_data_lines(raw, body, header_line)[row])
+
+    columns = {wanted: (_stamp_seconds(path, name, table.column(name), file_line)
+                        if stamp is not None and wanted == time else _float64(table.column(name)))
+               for wanted, name in names.items()}
+    return names, columns, header_line, body, stamp is not None
 
 
 def read_csv(
@@ -260,14 +355,14 @@ def read_csv(
     fast = _fast_columns(path, raw, requested, time)
     lines_cache: list[np.ndarray] = []
     if fast is not None:
-        names, columns, header_line, body = fast
+        names, columns, header_line, body, stamped = fast
 
         def file_line(row: int) -> int:
             if not lines_cache:
                 lines_cache.append(_data_lines(raw, body, header_line))
             return int(lines_cache[0][row])
     else:
-        _, names, columns, lines = _slow_columns(path, requested, time)
+        names, columns, lines, stamped = _slow_columns(path, requested, time)
         lines_cache.append(np.asarray(lines))
 
         def file_line(row: int) -> int:
@@ -285,9 +380,12 @@ def read_csv(
         names=names,
         time=stamps,
         time_name=names[time] if time else None,
-        time_unit=None,
+        time_unit="s" if stamped else None,
         row_label=row_label,
+        notes=([f"time column {names[time]!r} ({_STAMP_NOTE}): seconds from its first value"]
+               if stamped and time else []),
         resolution=(lambda: stamp_resolution(stamps)) if stamps is not None else (lambda: 0.0),
+        fixed_unit=stamped,
     )
 
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from dualprobe.io.errors import InputError
 from dualprobe.io.table import Table, resolve_columns
-from dualprobe.io.timebase import stamp_resolution
+from dualprobe.io.timebase import seconds_from_first, stamp_resolution
 
 __all__ = ["PARQUET_MAGIC", "read_parquet"]
 
@@ -38,9 +38,7 @@ def _as_float(source: str, name: str, column: Any, *, time: bool) -> np.ndarray:
         first = int(np.flatnonzero(column.is_null().to_numpy(zero_copy_only=False))[0])
         raise InputError(f"{source}: row {first + 1}, column {name!r}: missing time stamp (null)")
     if time and stamped:
-        ticks = column.cast(pa.int64()).to_numpy()
-        seconds = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[kind.unit]
-        return (ticks - ticks[0]).astype(np.float64) * seconds
+        return seconds_from_first(column.cast(pa.int64()).to_numpy(), kind.unit)
     if pa.types.is_boolean(kind) or not (
         pa.types.is_integer(kind) or pa.types.is_floating(kind) or pa.types.is_decimal(kind)
     ):

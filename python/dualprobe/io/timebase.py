@@ -48,6 +48,7 @@ __all__ = [
     "TimeBase",
     "analyse_time",
     "resample_segments",
+    "seconds_from_first",
     "split_unit",
     "stamp_resolution",
     "time_unit_factor",
@@ -99,6 +100,14 @@ def time_unit_of(name: str) -> str | None:
     if unit is None:
         return None
     return _UNIT_SPELLINGS.get(unit, _UNIT_SPELLINGS.get(unit.lower()))
+
+
+def seconds_from_first(ticks: np.ndarray, unit: str) -> np.ndarray:
+    """Integer time stamps (a date-time or duration in ``unit``: s, ms, us or ns) as seconds
+    from the first one: differences first, so that float64 keeps the stamps' resolution."""
+    scale = {"s": 1.0, "ms": 1e-3, "us": 1e-6, "ns": 1e-9}[unit]
+    ticks = np.asarray(ticks, dtype=np.int64)
+    return (ticks - ticks[0]).astype(np.float64) * scale
 
 
 def time_unit_factor(unit: str) -> float:
