@@ -108,6 +108,9 @@ def test_the_cli_characterises_a_european_export(tmp_path: Path) -> None:
     path.write_text("Zeitstempel;T_m1;T_m2\n" + "\n".join(rows) + "\n")
     assert rows[1] == "2026-12-01T10:00:00.100;" + rows[1].split(";", 1)[1]
     assert "," in rows[1] and "." not in rows[1].split(";", 1)[1]
+    # as German loggers write the seconds too: every stamp with a decimal comma
+    rows = [row.replace(".", ",", 1) for row in rows]
+    assert rows[1].startswith("2026-12-01T10:00:00,100;")
     done = subprocess.run([sys.executable, "-m", "dualprobe", "characterise", str(path),
                            "--time", "Zeitstempel"], capture_output=True, text=True,
                           check=False)

@@ -8,8 +8,9 @@ header line has none; blank lines and whitespace around cells are ignored; a uni
 the header (``s,degC,degC``) is refused (put the unit in the header: ``Time (ms)``). With a
 semicolon or tab delimiter the numbers may have a decimal comma (``512,37``: the European
 export, told from the first data row). A time column of ISO 8601 date-times
-(``2026-12-01T10:00:00.125``, a space for the ``T``, a zone ``Z`` / ``+01:00`` on every stamp
-or on none) becomes seconds from its first stamp, as a Parquet timestamp column does.
+(``2026-12-01T10:00:00.125``, a space for the ``T``, a comma for the point, a zone ``Z`` /
+``+01:00`` on every stamp or on none) becomes seconds from its first stamp, as a Parquet
+timestamp column does.
 
 Fast path: the header is read here, the body by ``pyarrow.csv`` straight into float64 columns
 (no NaN-by-default strings; an empty cell is NaN, a missing reading: see
@@ -45,7 +46,7 @@ __all__ = [
 _BOM = b"\xef\xbb\xbf"
 _NON_BLANK = re.compile(rb"\S")
 _DECIMAL_COMMA = re.compile(r"[+-]?\d*,\d+([eE][+-]?\d+)?")
-_STAMP = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}(\.\d+)?)?"
+_STAMP = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(:\d{2}([.,]\d+)?)?"
                     r"(?P<zone>Z|[+-]\d{2}:?\d{2})?")
 _STAMP_NOTE = "ISO 8601 date and time"
 
@@ -190,7 +191,9 @@ def _parse_stamps(path: Path, name: str, stamp: Any, cells: list[str], lines: li
             raise InputError(f"{where}: {_one_line(cell)} has {'no ' if stamp.tz else ''}zone "
                              "where the first stamp has " + ("one" if stamp.tz else "none")
                              + "; give every stamp a zone or none")
-    return _stamp_seconds(path, name, pa.chunked_array([pa.array(cells).cast(stamp)]),
+    # ISO 8601 allows a decimal comma in the seconds (Arrow's parser does not)
+    text = pa.array([cell.replace(",", ".") for cell in cells])
+    return _stamp_seconds(path, name, pa.chunked_array([text.cast(stamp)]),
                           lambda row: lines[row])
 
 
@@ -311,6 +314,8 @@ def _fast_columns(
     if len(first) != len(header):
         return None  # a ragged row: the line-by-line reader names it
     stamp = _stamp_type(first[header.index(names[time])]) if time else None
+    if stamp is not None and "," in first[header.index(names[time])]:
+        return None  # seconds with a decimal comma: the line-by-line reader parses them
     types = {name: pa.float64() for name in actual}
     if stamp is not None:
         types[names[time]] = stamp
