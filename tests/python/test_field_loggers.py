@@ -118,17 +118,21 @@ def test_a_tracked_schedule_is_held_where_the_record_ends_standing_still() -> No
     assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * _oracle_rmse(rec, gains)
 
 
-def test_a_tracked_refusal_names_the_gain_ratio_it_needed() -> None:
+def test_a_tracked_dip_on_a_searched_gain_falls_back_to_unit_gains() -> None:
     """25 Hz, 5 min, no flow, gains 0.971 / 0.987 (logger_sweep.py 141 8, case 141007): unit
     gains tracked a negative psi, and the searched static map came out at 0.866 (true 0.984),
     which fits as well; the tracked time constant then reached 4.4 times its median at the
-    record's start and the pair was refused, rightly, but sent the user to check both channels
-    there, where nothing is wrong. The refusal names the map instead."""
-    rec = record(141007, tau=6.86, ratio=4.22, m=0.49, rate=25.0, gains=(0.971, 0.987),
+    record's start and the pair was refused. Where only such a dip is implausible the tracking
+    is repeated on unit gains with a searched offset: 1.38x the oracle (warned: its psi
+    follows the noise by 8.9 %)."""
+    gains = (0.971, 0.987)
+    rec = record(141007, tau=6.86, ratio=4.22, m=0.49, rate=25.0, gains=gains,
                  noise=0.15, adc=0.1, duration=300.0)
-    with pytest.raises(EstimationError) as caught:
-        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t)
-    message = str(caught.value)
-    assert "the tracked time constant reaches" in message
-    assert "a gain ratio far from equal sensors'" in message and "--flow" in message
-    assert "check both channels" not in message
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t)
+    model = result.estimate.flow_model
+    assert model is not None and model.kind == "tracked"
+    assert model.evidence["unit_gain_fallback"] == 1.0
+    assert model.tracking is not None and model.tracking.static[0] == 1.0
+    assert result.gas_estimate is not None
+    # the issue's bound without the flow
+    assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * _oracle_rmse(rec, gains)

@@ -20,6 +20,7 @@ __all__ = [
     "SHARED_FACTOR",
     "SHEATHED_SCHEDULE_ERROR",
     "choose_filter_time_constant",
+    "dip_beyond_record",
     "discretisation_noise_std",
     "gap_statistics",
 ]
@@ -39,6 +40,13 @@ GAP_THRESHOLD = 10.0
 # doubts the schedule, and the tracking tries the sheathed path.
 PSI_NOISE_LIMIT = 0.05
 RECORD_FRACTION = 1.0 / 3.0  # time constants longer than this share of the record: implausible
+
+
+def dip_beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
+    """Whether only a schedule's dip makes a sensor's time constants implausible: the longest
+    within ``RECORD_FRACTION`` of the record at psi = 1 (``taus``), beyond it at psi's least."""
+    longest = max(taus) / float(np.min(psi))
+    return math.isfinite(longest) and max(taus) <= RECORD_FRACTION * duration < longest
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
 # factor common to both transfer functions cancels from the cross-relation (it multiplies both
 # sides), so a pair cannot determine it. Seen: 47.6 and 50.1 s for true 4.7 / 9.4 s elements.

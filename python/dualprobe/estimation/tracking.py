@@ -266,14 +266,15 @@ def _setup(t1: np.ndarray, ts: float, tf: float, order: int,
 @reused
 def search_static(
     t1: np.ndarray, t2: np.ndarray, ts: float, *, tf: float, sigma: tuple[float, float],
-    start: tuple[float, float], max_evaluations: int = 80,
+    start: tuple[float, float], max_evaluations: int = 80, unit_gain: bool = False,
 ) -> tuple[float, float]:
     """The static map (g, o) of sensor 2 onto sensor 1 for tracking (order 1): the minimum of
     the tracked misfit at a fixed penalty (``_STATIC_SEARCH_PENALTY``) over (g, o), by
     Nelder-Mead from ``start`` (e.g. windowed constant fits, whose medians are within ~1e-3).
     The knot columns are filtered once: every trial map's system is a combination of the
     parts T2 - r, 1 and T1 - r (:class:`dualprobe.estimation.knots.KnotParts`; r centres the
-    parts so that their combination loses no digits)."""
+    parts so that their combination loses no digits). ``unit_gain``: the offset alone, with
+    g = 1 (from the start's offset at the record's mean level)."""
     u1 = np.asarray(t1, dtype=float)
     v2 = np.asarray(t2, dtype=float)
     spacing, tail, row_filter, free = _setup(u1, ts, tf, 1)
@@ -298,6 +299,13 @@ def search_static(
 
     g0, o0 = start
     span = max(float(np.std(u1)), 1e-3)  # offset steps in the data's own scale
+    if unit_gain:
+        # g T2 + o = T2 + o' at the level r: o' = o + (g - 1) r
+        o1 = o0 + (g0 - 1.0) * level
+        found = scipy.optimize.minimize_scalar(
+            lambda o: misfit(np.array([1.0, o])), bracket=(o1 - 0.01 * span, o1 + 0.01 * span),
+            options={"xtol": 1e-6, "maxiter": max_evaluations})
+        return 1.0, float(found.x)
     simplex = np.array([[g0, o0], [g0 * 1.004, o0], [g0, o0 + 0.01 * span]])
     result = scipy.optimize.minimize(misfit, x0=np.array([g0, o0]), method="Nelder-Mead",
                                      options={"initial_simplex": simplex, "xatol": 1e-5,

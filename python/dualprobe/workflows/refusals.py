@@ -29,7 +29,7 @@ import scipy.ndimage
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate, still
 from dualprobe.estimation.orders import COMPLEX_NOTE
-from dualprobe.estimation.settings import RECORD_FRACTION
+from dualprobe.estimation.settings import RECORD_FRACTION, dip_beyond_record
 from dualprobe.io import EstimationError
 from dualprobe.workflows.checks import (
     absorbs_misfit,
@@ -107,8 +107,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
     for i, column in enumerate(columns):
         taus = estimate.time_constants[i]
         longest = max(taus) / (float(np.min(psi)) if psi is not None else 1.0)
-        if (tracked and psi is not None and math.isfinite(longest)
-                and max(taus) <= RECORD_FRACTION * duration < longest):
+        if tracked and psi is not None and dip_beyond_record(taus, psi, duration):
             # only the tracked schedule's dip is that long: one sensor drifting 3 K against
             # the other over 20 min was tracked as time constants varying 470-fold (1.3 s to
             # 616 s) and refused with "record longer", which the record did not need
