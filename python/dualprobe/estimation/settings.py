@@ -40,13 +40,6 @@ GAP_THRESHOLD = 10.0
 # doubts the schedule, and the tracking tries the sheathed path.
 PSI_NOISE_LIMIT = 0.05
 RECORD_FRACTION = 1.0 / 3.0  # time constants longer than this share of the record: implausible
-
-
-def dip_beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
-    """Whether only a schedule's dip makes a sensor's time constants implausible: the longest
-    within ``RECORD_FRACTION`` of the record at psi = 1 (``taus``), beyond it at psi's least."""
-    longest = max(taus) / float(np.min(psi))
-    return math.isfinite(longest) and max(taus) <= RECORD_FRACTION * duration < longest
 # Two time constants, one per sensor, closer than this (relative) count as one shared factor: a
 # factor common to both transfer functions cancels from the cross-relation (it multiplies both
 # sides), so a pair cannot determine it. Seen: 47.6 and 50.1 s for true 4.7 / 9.4 s elements.
@@ -64,6 +57,13 @@ DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling cl
 # T_g_std had an RMS of 1.14-5.55 without it and 0.51-2.07 with it on five of them (1.1x-4.0x
 # the oracle; 30108, 3.1x, is the 2.07).
 SHEATHED_SCHEDULE_ERROR = 0.08
+
+
+def dip_beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
+    """Whether only a schedule's dip makes a sensor's time constants implausible: the longest
+    within ``RECORD_FRACTION`` of the record at psi = 1 (``taus``), beyond it at psi's least."""
+    longest = max(taus) / float(np.min(psi))
+    return math.isfinite(longest) and max(taus) <= RECORD_FRACTION * duration < longest
 
 
 _KINK_MEDIAN_WINDOW = 11  # running median of the second differences: kinks are 2 samples wide

@@ -144,12 +144,18 @@ def read_csv_table(path: str | os.PathLike[str]) -> tuple[list[str], list[list[s
     lines are skipped; whitespace around cells is ignored; the delimiter is a comma, or a
     semicolon / tab when the header has no comma. Raises :class:`InputError`.
     """
-    path = Path(path)
+    header, rows, lines, _ = _read_table(Path(path))
+    return header, rows, lines
+
+
+def _read_table(path: Path) -> tuple[list[str], list[list[str]], list[int], str]:
+    """:func:`read_csv_table` and the delimiter it read with."""
     text = _read_bytes(path).decode("utf-8-sig")
     header_line = next((line for line in text.splitlines() if line.strip()), "")
+    delimiter = _delimiter(header_line)
     rows: list[list[str]] = []
     lines: list[int] = []
-    reader = csv.reader(_io.StringIO(text, newline=""), delimiter=_delimiter(header_line))
+    reader = csv.reader(_io.StringIO(text, newline=""), delimiter=delimiter)
     try:
         for row in reader:
             cells = [cell.strip() for cell in row]
@@ -164,7 +170,7 @@ def read_csv_table(path: str | os.PathLike[str]) -> tuple[list[str], list[list[s
     _check_header(path, header, lines[0])
     if len(rows) == 1:
         raise InputError(f"{path}: header only, no data rows (header: {', '.join(header)})")
-    return header, rows[1:], lines[1:]
+    return header, rows[1:], lines[1:], delimiter
 
 
 def _is_number(cell: str) -> bool:
@@ -227,14 +233,12 @@ def _slow_columns(
     path: Path, requested: list[str], time: str | None
 ) -> tuple[dict[str, str], dict[str, np.ndarray], list[int], bool]:
     """(names, columns, file lines, whether the time column held date-times)."""
-    header, data, lines = read_csv_table(path)
+    header, data, lines, delimiter = _read_table(path)
     names = resolve_columns(str(path), header, requested, time=time)
     width = len(header)
     for row, line in zip(data, lines, strict=True):
         if len(row) != width:
             raise InputError(f"{path}: line {line}: {len(row)} fields, header has {width}")
-    text = _read_bytes(path).decode("utf-8-sig")
-    delimiter = _delimiter(next((line for line in text.splitlines() if line.strip()), ""))
     comma = _decimal_comma(delimiter, data[0])
     stamp = _stamp_type(data[0][header.index(names[time])]) if time else None
     parsed = {
@@ -313,8 +317,9 @@ def _fast_columns(
     first = _first_cells(raw, body, delimiter)
     if len(first) != len(header):
         return None  # a ragged row: the line-by-line reader names it
-    stamp = _stamp_type(first[header.index(names[time])]) if time else None
-    if stamp is not None and "," in first[header.index(names[time])]:
+    first_stamp = first[header.index(names[time])] if time else ""
+    stamp = _stamp_type(first_stamp) if time else None
+    if stamp is not None and "," in first_stamp:
         return None  # seconds with a decimal comma: the line-by-line reader parses them
     types = {name: pa.float64() for name in actual}
     if stamp is not None:

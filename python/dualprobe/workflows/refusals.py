@@ -120,7 +120,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 cause = (f"the readings move by only {moved:.2g} K there: the gas stands "
                          "still, so nothing there determines a time constant; trim the record "
                          "to where the temperature changes (--window)")
-            elif abs(math.log(gain)) > _UNEQUAL_GAINS:
+            elif not gain > 0.0 or abs(math.log(gain)) > _UNEQUAL_GAINS:
                 cause = (f"the tracking needed {columns[0]} = {gain:.4g} x {columns[1]} "
                          f"{offset:+.4g} K, a gain ratio far from equal sensors': a gain "
                          "difference and time constants that change with the temperature "
