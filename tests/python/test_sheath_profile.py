@@ -64,3 +64,32 @@ def test_sheaths_the_cross_relation_missed_are_seeded() -> None:
     best = independent_oracle_rmse(rec, gains)
     # measured 2.25x (5.29x unseeded); the issue's bound without the flow is 2.5x
     assert ours <= 2.5 * best, ours / best
+
+
+def test_sheath_and_ratio_are_profiled_together() -> None:
+    """Pair 30506 of ``field_sweep_independent.py 305 8`` (fast element 7.33 s, ratio 3.46, m
+    0.66, 10 Hz, one 0.44 s sheath on the fast sensor, gains 0.981 / 1.029). The MAP's cost
+    lies in a narrow valley along the sheath and the ratio together: found at 0.22 s with the
+    ratio 3.28, the gas was 2.64x the oracle (misfit 14 times the noise), and neither the
+    sheath alone nor the ratio alone lowers the cost from there (without_flow._joint_profile).
+    Given the true psi the same path reaches 1.02x."""
+    gains = (0.981, 1.029)
+    rec = fi.record(30506, tau=7.33, ratio=3.46, m=0.66, rate=10.0, sheaths=(0.44, 0.0),
+                    gains=gains)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.sheathed_path
+    taus = result.estimate.time_constants
+    assert [len(pair) for pair in taus] == [2, 1], taus
+    # at the record's geometric mean of psi, as above; measured 5 % short (half the truth
+    # before)
+    sheath = _geometric_mean(taus[0][1] / model.psi)
+    assert abs(sheath / _geometric_mean(rec.sheath1) - 1.0) < 0.15, sheath
+    ratio = _geometric_mean(taus[1][0] / model.psi) / _geometric_mean(taus[0][0] / model.psi)
+    assert abs(ratio / 3.46 - 1.0) < 0.03, ratio  # measured 3.44 (3.28 before)
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, rec.gas)
+    best = independent_oracle_rmse(rec, gains)
+    # measured 1.25x (2.64x before); the issue's bound without the flow is 2.5x, and 2.0x
+    # keeps most of what the joint profile gained
+    assert ours <= 2.0 * best, ours / best

@@ -15,11 +15,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
-from dualprobe.estimation import adaptive, crossfit, flow, psi_map, still, tracking
+from dualprobe.estimation import adaptive, crossfit, flow, still, tracking
 from dualprobe.estimation.engine import Fit
 from dualprobe.estimation.field import (
     FlowModel,
@@ -34,6 +34,7 @@ from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.rival import rival_schedule
 from dualprobe.estimation.settings import GAP_THRESHOLD, PSI_NOISE_LIMIT, dip_beyond_record
+from dualprobe.estimation.sheath_profile import profile_sheaths
 
 __all__ = ["track_without_flow"]
 
@@ -218,7 +219,8 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     the joint cross-relation fit (:mod:`dualprobe.estimation.crossfit`) refined by the joint
     MAP (:mod:`dualprobe.estimation.psi_map`), both on block means where the record is long
     (:class:`~dualprobe.estimation.map_schedule.MapSchedule`), alternated with the engine's
-    order-2 stages and each sheath then profiled by the MAP's cost (:func:`_profile_sheaths`),
+    order-2 stages and the sheaths then profiled by the MAP's cost
+    (:func:`~dualprobe.estimation.sheath_profile.profile_sheaths`),
     then the engine's fit on that schedule at every row; kept only when it fits better than
     what the first-order tracking gave. Where the cross-relation found no sheath on a sensor,
     the same from a seeded sheath (``_SHEATH_SEED``) too, kept when it fits significantly
@@ -311,7 +313,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
             return None
         # Only a kept schedule is profiled (4-7 more MAPs: a futile try at 50 Hz must not
         # pay them), and the profiled one is kept only with the same evidence.
-        profiled = _profile_sheaths(stages, maps.solve)
+        profiled = profile_sheaths(stages, maps.solve)
         nxt = maps.schedule(profiled) if profiled != stages else None
         candidate = run(nxt) if nxt is not None else None
         if nxt is not None and candidate is not None and candidate.status == "ok":
@@ -355,50 +357,6 @@ def _oscillates(estimate: PairEstimate) -> bool:
     return isinstance(notes, list) and any(COMPLEX_NOTE in str(note) for note in notes)
 
 
-def _profile_sheaths(stages: list[tuple[float, ...]],
-                     solve: Callable[[list[tuple[float, ...]]], psi_map.PsiMap | None],
-                     ) -> list[tuple[float, ...]]:
-    """Each sheath (a sensor's first stage of two) scaled to minimise the MAP's cost, the
-    other stages held: a parabola in log scale through 1 and 1 +- ``_PROFILE_STEP``, its vertex
-    (within twice that) tried once; the stages of the lowest cost seen.
-
-    Why: the MAP's psi, and the gas with it, are steep in the sheath (pair 203 of
-    ``field_sweep.py 1 8 noflow``: one 0.82 s sheath on the slow sensor, found at 0.71 s by the
-    engine's fit on the MAP's psi; the gas 3.3, 2.0, 1.1, 0.93, 1.4 K for that sheath times
-    0.9, 1, 1.1, 1.16, 1.25, the oracle 0.80), while the MAP's cost is least near the truth
-    (21 515 at 1, 21 317 at 1.1, 21 353 at 1.16). One sheath at a time: a stage common to both
-    sensors cancels (README), and along it the cost is flat (pair 802, sheaths 0.67 / 0.98 s:
-    26 041 at the found 0.31 / 0.58 s, 26 305 at twice them)."""
-    best = list(stages)
-    cost = _cost(solve(best))
-    for sensor, pair in enumerate(stages):
-        if len(pair) != 2 or not math.isfinite(cost):
-            continue
-        d = _PROFILE_STEP
-        seen = [(cost, best)] + [_scaled(solve, best, sensor, c) for c in (-d, d)]
-        down, up = seen[1][0], seen[2][0]
-        curvature = up + down - 2.0 * cost
-        if math.isfinite(curvature) and curvature > 0.0:
-            vertex = float(np.clip(0.5 * d * (down - up) / curvature, -2.0 * d, 2.0 * d))
-            if abs(vertex) > 0.1 * d:
-                seen.append(_scaled(solve, best, sensor, vertex))
-        cost, best = min(seen, key=lambda item: item[0])
-    return best
-
-
-def _scaled(solve: Callable[[list[tuple[float, ...]]], psi_map.PsiMap | None],
-            stages: list[tuple[float, ...]], sensor: int, log_c: float,
-            ) -> tuple[float, list[tuple[float, ...]]]:
-    """The MAP's cost with ``sensor``'s sheath times exp(log_c), and those stages."""
-    trial = list(stages)
-    trial[sensor] = (stages[sensor][0] * math.exp(log_c), stages[sensor][1])
-    return _cost(solve(trial)), trial
-
-
-def _cost(found: psi_map.PsiMap | None) -> float:
-    return found.cost if found is not None and np.all(np.isfinite(found.psi)) else math.inf
-
-
 # A constant model that misfits by less than this (its residual within twice the noise) is a
 # noise model that is off (quantisation, coloured noise), not time constants that vary: on
 # quantised laboratory records (0.1 K steps, 0.02 K noise, constant time constants) the misfit is
@@ -408,7 +366,6 @@ _TRACKING_MISFIT = 4.0
 
 _SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
 _ALTERNATIONS = 3  # MAP psi <-> the engine's order-2 stages
-_PROFILE_STEP = math.log(1.15)  # the sheath profile's first steps (_profile_sheaths)
 _SHEATH_SEED = 0.05  # of the fast element: a sheath tried where the cross-relation found none
 # psi_noise of a first-order tracked psi beyond which sheaths are suspected (and the sheathed
 # path tried). Measured on the separate generator: two sheathed pairs whose sheaths (0.3 / 0.5,
