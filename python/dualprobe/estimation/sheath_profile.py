@@ -79,15 +79,12 @@ def _joint_profile(stages: list[tuple[float, ...]], cost: float, solve: Solve,
     axes = [(sensor, 0) for sensor, pair in enumerate(stages) if len(pair) == 2]
     if len(axes) != 1:
         return list(stages)
-    axes.append((1, len(stages[1]) - 1))  # the slow sensor's element: the ratio
+    axes.append((1, len(stages[1]) - 1))  # sensor 2's element: the ratio
     d = _JOINT_DELTA
     best = list(stages)
 
     def moved(base: list[tuple[float, ...]], step: np.ndarray) -> list[tuple[float, ...]]:
-        out = [list(pair) for pair in base]
-        for (sensor, stage), s in zip(axes, step, strict=True):
-            out[sensor][stage] *= math.exp(float(s))
-        return [tuple(pair) for pair in out]
+        return _moved(base, axes, step)
 
     k = len(axes)
     for _ in range(_JOINT_ROUNDS):
@@ -126,11 +123,19 @@ def _joint_profile(stages: list[tuple[float, ...]], cost: float, solve: Solve,
     return best
 
 
+def _moved(stages: list[tuple[float, ...]], axes: list[tuple[int, int]],
+           logs: np.ndarray) -> list[tuple[float, ...]]:
+    """``stages`` with stage ``axes[i]`` = (sensor, stage) times exp(``logs[i]``)."""
+    out = [list(pair) for pair in stages]
+    for (sensor, stage), log_c in zip(axes, logs, strict=True):
+        out[sensor][stage] *= math.exp(float(log_c))
+    return [tuple(pair) for pair in out]
+
+
 def _scaled(solve: Solve, stages: list[tuple[float, ...]], sensor: int, log_c: float,
             ) -> tuple[float, list[tuple[float, ...]]]:
     """The MAP's cost with ``sensor``'s sheath times exp(log_c), and those stages."""
-    trial = list(stages)
-    trial[sensor] = (stages[sensor][0] * math.exp(log_c), stages[sensor][1])
+    trial = _moved(stages, [(sensor, 0)], np.array([log_c]))
     return _cost(solve(trial)), trial
 
 

@@ -311,8 +311,9 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         evidence = accepted(estimate, stages)
         if evidence is None:
             return None
-        # Only a kept schedule is profiled (4-7 more MAPs: a futile try at 50 Hz must not
-        # pay them), and the profiled one is kept only with the same evidence.
+        # Only a kept schedule is profiled (4-7 more MAPs, up to 24 more with one sheath: a
+        # futile try at 50 Hz must not pay them), and the profiled one is kept only with the
+        # same evidence.
         profiled = profile_sheaths(stages, maps.solve)
         nxt = maps.schedule(profiled) if profiled != stages else None
         candidate = run(nxt) if nxt is not None else None
