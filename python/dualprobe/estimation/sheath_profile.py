@@ -75,7 +75,14 @@ def _joint_profile(stages: list[tuple[float, ...]], cost: float, solve: Solve,
     the pair does not see (README) and along which the MAP, maximising over the states rather
     than marginalising them, drifts: a 20 Hz pair with sheaths 0.26 / 0.6 s went from 1.72x
     to 2.85x the oracle, while one-sheath pairs gained (2.19x -> 1.21x, 1.45x -> 1.10x, ...;
-    README)."""
+    README). Nor along the sheaths' difference and the ratio, which leaves that direction out
+    (2026-12-06): of nine two-sheath pairs of the separate generator six gained (2.51x ->
+    2.24x, 2.42x -> 1.87x, 2.12x -> 1.79x, ...), one held, two lost (1.72x -> 2.10x, 1.91x ->
+    2.03x); the project's pair 104 (sheaths 0.24 / 0.77 s at the record's level) gained in
+    the gas (1.98x -> 1.85x) while the engine's fit on that psi put its fast element and both
+    sheaths 5 % lower (5.09 -> 4.86 s for 5.04), the larger 21 % short (0.64 -> 0.61 s for
+    0.77), beyond what its test holds. The difference alone changed nothing; the ratio alone
+    did most of it (2.12x -> 1.90x; 104 1.86x, the same sheath)."""
     axes = [(sensor, 0) for sensor, pair in enumerate(stages) if len(pair) == 2]
     if len(axes) != 1:
         return list(stages)
