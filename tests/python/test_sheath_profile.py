@@ -2,7 +2,7 @@
 without_flow._sheathed): profiled by the MAP's cost (_profile_sheaths), and seeded where the
 cross-relation found none. The MAP's psi, and the gas with it, are steep in a sheath's value:
 a sheath 12 % short left psi late and smeared at every load step and the gas at 2.56x the
-oracle; sheaths missed altogether, 5.3x. Its own file: about 100 s (--dist loadfile)."""
+oracle; sheaths missed altogether, 5.3x. Its own file: about 160 s (--dist loadfile)."""
 
 from __future__ import annotations
 
@@ -92,4 +92,31 @@ def test_sheath_and_ratio_are_profiled_together() -> None:
     best = independent_oracle_rmse(rec, gains)
     # measured 1.25x (2.64x before); the issue's bound without the flow is 2.5x, and 2.0x
     # keeps most of what the joint profile gained
+    assert ours <= 2.0 * best, ours / best
+
+
+def test_a_sheath_far_off_is_followed_while_the_cost_falls() -> None:
+    """Pair 30601 of ``field_sweep_independent.py 306 8`` at 10 Hz (fast element 4.14 s,
+    ratio 3.89, m 0.47, one 0.27 s sheath on the fast sensor, gains 0.978 / 0.982). The
+    cross-relation started the sheath at 0.087 s, a third of the truth; the MAP's cost still
+    fell at the one-at-a-time parabola's edge (0.10 s), the joint profile took it to 0.14 s
+    and stopped, and the gas was 3.02x the oracle, misfitting 4.9 times the noise
+    (sheath_profile._followed)."""
+    gains = (0.978, 0.982)
+    rec = fi.record(30601, tau=4.14, ratio=3.89, m=0.47, rate=10.0, sheaths=(0.27, 0.0),
+                    gains=gains)
+    result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    model = result.estimate.flow_model
+    assert model is not None and model.sheathed_path
+    taus = result.estimate.time_constants
+    assert [len(pair) for pair in taus] == [2, 1], taus
+    # at the record's geometric mean of psi, as above; measured 5 % short (0.14 s, about half
+    # the truth, before)
+    sheath = _geometric_mean(taus[0][1] / model.psi)
+    assert abs(sheath / _geometric_mean(rec.sheath1) - 1.0) < 0.15, sheath
+    assert result.gas_estimate is not None
+    ours = _rmse(result.gas_estimate, rec.gas)
+    best = independent_oracle_rmse(rec, gains)
+    # measured 1.14x (3.02x before); the issue's bound without the flow is 2.5x, and 2.0x
+    # keeps most of what following the cost gained
     assert ours <= 2.0 * best, ours / best
