@@ -32,8 +32,10 @@ _JOINT_GAIN = 1.0
 def profile_sheaths(stages: list[tuple[float, ...]], solve: Solve) -> list[tuple[float, ...]]:
     """Each sheath (a sensor's first stage of two) scaled to minimise the MAP's cost, the
     other stages held: a parabola in log scale through 1 and 1 +- ``_PROFILE_STEP``, its vertex
-    (within twice that) tried once; the stages of the lowest cost seen, then profiled with
-    the ratio together (:func:`_joint_profile`).
+    (within twice that) tried once; with a single sheath whose lowest cost lies at or beyond
+    the parabola's edge, followed further while the cost falls (:func:`_followed`); the
+    stages of the lowest cost seen, then profiled with the ratio together
+    (:func:`_joint_profile`).
 
     Why: the MAP's psi, and the gas with it, are steep in the sheath (pair 203 of
     ``field_sweep.py 1 8 noflow``: one 0.82 s sheath on the slow sensor, found at 0.71 s by the
