@@ -14,8 +14,7 @@ import pytest
 from dualprobe.estimation import without_flow
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record as independent_record
-from field_oracle import oracle
-from test_field_independent import _rmse
+from test_field_independent import _oracle_rmse, _rmse
 
 
 def _spied(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
@@ -51,9 +50,7 @@ def test_sheaths_the_cross_relation_finds_replace_a_first_order_psi_that_explain
     # test_sheathed_noise_rule.py (what this path's stages of 0.3 s and over were within)
     found = [taus[1] for taus in result.estimate.time_constants]
     np.testing.assert_allclose(found, [0.29, 0.39], rtol=0.25)
-    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
-                  sheath1=rec.sheath1, sheath2=rec.sheath2, static2=(gains[1] / gains[0], 0.0),
-                  gases=("rw",)).rmse
+    best = _oracle_rmse(rec, gains)
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * best  # the bound without flow
     check = result.model_check
@@ -75,7 +72,6 @@ def test_an_unsheathed_pair_keeps_first_order_where_the_found_sheaths_fit_worse(
     assert model is not None and model.kind == "tracked"
     assert model.evidence.get("sheathed_path", 0.0) == 0.0
     assert [len(taus) for taus in result.estimate.time_constants] == [1, 1]
-    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
-                  gases=("rw",)).rmse
+    best = _oracle_rmse(rec)
     assert result.gas_estimate is not None
     assert _rmse(result.gas_estimate, rec.gas) <= 2.5 * best  # the bound without flow

@@ -23,6 +23,7 @@ from dualprobe.workflows import readings as prepared
 from dualprobe.workflows.characterise import characterise_arrays
 from dualprobe.workflows.refusals import refuse_surging_gas, surge
 from field_oracle import oracle
+from test_field_independent import _oracle_rmse, _rmse
 
 _TS = 0.5
 _ROWS = 800
@@ -163,10 +164,7 @@ def drop() -> fi.Recording:
 def _times_oracle(rec: fi.Recording, gas: np.ndarray | None) -> float:
     """``drop``'s reconstructed gas RMS error in multiples of the oracle's."""
     assert gas is not None
-    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
-                  sheath1=rec.sheath1, sheath2=rec.sheath2, static2=(1.01 / 0.968, 0.0),
-                  gases=("rw",)).rmse
-    return float(np.sqrt(np.mean((gas - rec.gas) ** 2))) / best
+    return _rmse(gas, rec.gas) / _oracle_rmse(rec, (0.968, 1.01))
 
 
 def _first_order_only(monkeypatch: pytest.MonkeyPatch) -> None:

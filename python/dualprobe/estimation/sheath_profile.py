@@ -61,8 +61,8 @@ def profile_sheaths(stages: list[tuple[float, ...]], solve: Solve) -> list[tuple
                 offsets.append(vertex)
                 seen.append(_scaled(solve, best, sensor, vertex))
         lowest = min(range(len(seen)), key=lambda i: seen[i][0])
-        if single and abs(offsets[lowest]) >= d:
-            seen.append(_followed(solve, best, sensor, offsets[lowest], seen[lowest]))
+        if single and abs(offsets[lowest]) >= d:  # (the lowest, or lower along its way)
+            seen[lowest] = _followed(solve, best, sensor, offsets[lowest], seen[lowest])
         cost, best = min(seen, key=lambda item: item[0])
     return _joint_profile(best, cost, solve)
 
