@@ -145,7 +145,9 @@ def test_a_record_over_the_row_limit_takes_the_sheathed_path_on_block_means(
     calls = _spy_on_the_cross_relation(monkeypatch)
     rec = _sheathed_record(20.0, 600.0)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
-    assert calls == [(6000, pytest.approx(0.1))]
+    # once with the engine's filter and once with the finer one (without_flow._sheathed_either),
+    # both on the block means
+    assert calls == [(6000, pytest.approx(0.1))] * 2
     model = result.estimate.flow_model
     assert model is not None and model.kind == "tracked"
     assert model.evidence.get("sheathed_path") == 1.0
@@ -250,16 +252,46 @@ def test_the_knot_gram_from_windows_is_the_sparse_product() -> None:
     assert band.shape[0] < cols.knots // 4  # banded: the windows overlap few neighbours
 
 
-def test_a_cross_relation_without_a_positive_element_leaves_the_sheathed_path() -> None:
-    # 90 s at 50 Hz, one sheath: the cross-relation's elements came out at -0.28 and -4.7 s,
-    # which left sensor 1 no stage at all and the MAP an empty chain (IndexError, a traceback
-    # from characterise; found 2026-12-03 by short random drive cycles). The sheathed path is
-    # now not taken; the first-order result misfits 4e4 times the noise with a time constant
-    # the data do not determine, which is refused (exit 3) with the reason.
+def _short_one_sheath_record() -> sim.FieldRecording:
+    """90 s at 50 Hz, one sheath (found 2026-12-03 by short random drive cycles)."""
     rng = np.random.default_rng(1)
     conditions = sim.drive_cycle(90.0, rng)
-    rec = sim.simulate_field_pair(conditions, sim.FieldSensor(5.6, 0.5, 0.0, noise_std=NOISE),
-                                  sim.FieldSensor(18.9, 0.5, 0.5, noise_std=NOISE),
-                                  sample_rate=50.0, quantisation=ADC, rng=rng)
+    return sim.simulate_field_pair(conditions, sim.FieldSensor(5.6, 0.5, 0.0, noise_std=NOISE),
+                                   sim.FieldSensor(18.9, 0.5, 0.5, noise_std=NOISE),
+                                   sample_rate=50.0, quantisation=ADC, rng=rng)
+
+
+def test_a_cross_relation_without_a_positive_element_leaves_the_sheathed_path(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    # With the engine's filter the cross-relation's elements came out at -0.28 and -4.7 s,
+    # which left sensor 1 no stage at all and the MAP an empty chain (IndexError, a traceback
+    # from characterise). That try now leaves the sheathed path; with the finer filter's try
+    # made the same one, the first-order result misfits 4e4 times the noise with a time
+    # constant the data do not determine, which is refused (exit 3) with the reason.
+    monkeypatch.setattr(without_flow, "_FINER_FILTER", 1.0)
+    rec = _short_one_sheath_record()
     with pytest.raises(EstimationError, match="the data do not determine it"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+
+
+def test_the_finer_filter_s_sheathed_result_on_that_record_is_refused_as_implausible(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """The same record as it runs: the engine's filter's cross-relation has no positive
+    element, the finer filter's (without_flow._sheathed_either) has, and its schedule is kept
+    over the first-order one. It puts the slow sensor's time constant past a third of the
+    90 s record (39 s, 3.5 times its median, measured), which is refused with that reason."""
+    elements: list[bool] = []
+    fit = without_flow.crossfit.fit_cross_relation
+
+    def spy(*args: Any, **kwargs: Any) -> Any:
+        found = fit(*args, **kwargs)
+        elements.append(all(pair[0] > 0.0 for pair in found.stages))
+        return found
+
+    monkeypatch.setattr(without_flow.crossfit, "fit_cross_relation", spy)
+    rec = _short_one_sheath_record()
+    with pytest.raises(EstimationError, match="longer than a third of the record"):
+        characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
+    # each time the path runs (the searched static map, then unit gains): the engine's
+    # filter's try, then the finer one's
+    assert elements == [False, True] * (len(elements) // 2) and elements

@@ -156,10 +156,10 @@ def _tracked(t1: np.ndarray, t2: np.ndarray, base: PairEstimate, run: RunSvf,
         suspect = noise > _SHEATH_SUSPECT
     # the sheathed path, kept only when it fits better (tried once: it is deterministic)
     if suspect or fit_of(chosen[0]).misfit > _TRACKING_MISFIT:
-        chosen = _sheathed(t1, t2, base, chosen, run, stats)
+        chosen = _sheathed_either(t1, t2, base, chosen, run, stats, found_only=False)
     elif model.kind == "tracked":
         # or where the cross-relation finds both sheaths (see _sheathed)
-        chosen = _sheathed(t1, t2, base, chosen, run, stats, found_only=True)
+        chosen = _sheathed_either(t1, t2, base, chosen, run, stats, found_only=True)
     # a first-order tracked psi freed where the data repeat it (estimation/adaptive.py)
     chosen = _adapted(t1, t2, chosen, run)
     # and held where the gas stands still (estimation/still.py)
@@ -215,9 +215,35 @@ def _held(t1: np.ndarray, t2: np.ndarray, chosen: tuple[PairEstimate, FlowModel]
     return candidate, dataclasses.replace(model, psi=held, evidence=evidence)
 
 
+def _sheathed_either(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
+                     chosen: tuple[PairEstimate, FlowModel], run: RunSvf,
+                     stats: dict[str, float], *, found_only: bool
+                     ) -> tuple[PairEstimate, FlowModel]:
+    """The sheathed path with the cross-relation's filter at the engine's time constant and
+    at ``_FINER_FILTER`` of it: the finer one's result where only it is kept or where it
+    fits significantly better (``chosen`` where neither is kept).
+
+    The engine's filter is sized for the elements (tf 4.2 s on a 7.8 s one) and passes about
+    (tf w)^-3 of a sheath's frequencies: on 20 Hz pair 30603 (sheaths 0.38 / 0.23 s) the
+    cross-relation found no sheath with it and 0.35 / 0.21 s with tf / 2 (10.3x -> 2.5x the
+    oracle); on 30705 (one 0.74 s sheath) 0.34 s and 0.59 s (4.2x -> 1.1x). The finer filter
+    amplifies the noise more: on 10 Hz pairs it lost sheaths that tf found, so it is no
+    default, and a lower misfit alone does not take it: on the 10 Hz pair 5301 (sheaths 0.38
+    / 0.56 s) it fitted 0.661 times the noise against 0.675 with one sheath lost (2.25x ->
+    3.78x)."""
+    coarse, finer = (_sheathed(t1, t2, base, chosen, run, stats, found_only=found_only,
+                               finer=fine) for fine in (False, True))
+    if finer is chosen or coarse is chosen:
+        return coarse if finer is chosen else finer
+    better = flow.evidence(fit_of(coarse[0]).misfit, fit_of(finer[0]).misfit,
+                           effective_rows(base))
+    return finer if better > GAP_THRESHOLD else coarse
+
+
 def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
               chosen: tuple[PairEstimate, FlowModel], run: RunSvf, stats: dict[str, float],
-              *, found_only: bool = False) -> tuple[PairEstimate, FlowModel]:
+              *, found_only: bool = False, finer: bool = False
+              ) -> tuple[PairEstimate, FlowModel]:
     """Second-order pairs (sheaths) that the first-order tracking leaves misfitting: psi from
     the joint cross-relation fit (:mod:`dualprobe.estimation.crossfit`) refined by the joint
     MAP (:mod:`dualprobe.estimation.psi_map`), both on block means where the record is long
@@ -228,22 +254,16 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     what the first-order tracking gave. Where the cross-relation found no sheath on a sensor,
     the same from a seeded sheath (``_SHEATH_SEED``) too, kept when it fits significantly
     better. ``found_only``: tried only where the cross-relation finds a sheath on both
-    sensors."""
+    sensors; ``finer``: its filter at ``_FINER_FILTER`` of the engine's (_sheathed_either)."""
     fit = fit_of(base)
     maps = MapSchedule(t1, t2, fit)
     if not maps.usable:
         return chosen
     taus = base.time_constants
     static = (fit.gain_ratio, fit.offset) if fit.static == "affine" else (1.0, 0.0)
-    try:
-        cross = crossfit.fit_cross_relation(maps.a, maps.b, maps.ts, fit.tf,
-                                            (taus[0][0], taus[1][0]), static)
-        maps.set_model(cross.static, taus[0][0])
-    except (ValueError, np.linalg.LinAlgError, RuntimeError):
-        return chosen
-    if not all(math.isfinite(pair[0]) and pair[0] > 0.0 for pair in cross.stages):
-        # no element to start from (90 s at 50 Hz with one sheath: an element of 0 s or less,
-        # which left a sensor no stage at all and the MAP's chain an empty one: IndexError)
+    tf = fit.tf * (_FINER_FILTER if finer else 1.0)
+    cross = _cross_relation(maps, tf, (taus[0][0], taus[1][0]), static)
+    if cross is None:
         return chosen
     n_eff = effective_rows(base)
 
@@ -369,6 +389,22 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     return estimate, FlowModel("tracked", psi, evidence=stats)
 
 
+def _cross_relation(maps: MapSchedule, tf: float, first: tuple[float, float],
+                    static: tuple[float, float]) -> crossfit.CrossFit | None:
+    """The cross-relation fit from the first-order ``first`` and ``static`` with filter time
+    constant ``tf``, ``maps``'s model set to it; None where it fails or leaves a sensor no
+    element (90 s at 50 Hz with one sheath: an element of 0 s or less, which left a sensor no
+    stage and the MAP's chain an empty one)."""
+    try:
+        cross = crossfit.fit_cross_relation(maps.a, maps.b, maps.ts, tf, first, static)
+        if not all(math.isfinite(pair[0]) and pair[0] > 0.0 for pair in cross.stages):
+            return None
+        maps.set_model(cross.static, first[0])
+    except (ValueError, np.linalg.LinAlgError, RuntimeError):
+        return None
+    return cross
+
+
 def _oscillates(estimate: PairEstimate) -> bool:
     """Whether the engine's fit gave a sensor a complex pole pair (reported as a double pole)."""
     notes = estimate.identifiability.get("notes", [])
@@ -384,6 +420,7 @@ _TRACKING_MISFIT = 4.0
 
 _SHEATH_FLOOR = 0.005  # a second stage under 0.5 % of the element's is no stage
 _ALTERNATIONS = 3  # MAP psi <-> the engine's order-2 stages
+_FINER_FILTER = 0.5  # of the engine's filter time constant: the cross-relation's second try
 _SHEATH_SEED = 0.05  # of the fast element: a sheath tried where the cross-relation found none
 # psi_noise of a first-order tracked psi beyond which sheaths are suspected (and the sheathed
 # path tried). Measured on the separate generator: two sheathed pairs whose sheaths (0.3 / 0.5,
