@@ -225,7 +225,7 @@ def _sheathed_either(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
 
     The engine's filter is sized for the elements (tf 4.2 s on a 7.8 s one) and passes about
     (tf w)^-3 of a sheath's frequencies: on 20 Hz pair 30603 (sheaths 0.38 / 0.23 s) the
-    cross-relation found no sheath with it and 0.35 / 0.21 s with tf / 2 (10.3x -> 2.5x the
+    cross-relation found no sheath with it and 0.35 / 0.21 s with tf / 2 (10.3x -> 2.503x the
     oracle); on 30705 (one 0.74 s sheath) 0.34 s and 0.59 s (4.2x -> 1.1x). The finer filter
     amplifies the noise more: on 10 Hz pairs it lost sheaths that tf found, so it is no
     default, and a lower misfit alone does not take it: on the 10 Hz pair 5301 (sheaths 0.38
