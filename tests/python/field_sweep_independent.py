@@ -9,6 +9,9 @@ min, 0.05 K noise, 0.02 K ADC steps: the generator's defaults). Each line: "with
 issue's bound of the oracle (2.5x without the flow; 1.5x and 15 % of the raw fast sensor's
 error with it), "weak" beyond it, "BAD" worse than the raw fast sensor, "REFUSED"
 (exit 3); "DISHONEST" marks a result beyond the bound that the model check called adequate.
+"shared sheath part": the error of the gas seen through the part of the sheaths that both
+sensors share, over the oracle's (field_oracle.common_part_error): what an estimate that
+undoes all but that part still misses.
 """
 
 from __future__ import annotations
@@ -22,7 +25,7 @@ import numpy as np
 import field_independent as fi
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_oracle import oracle, worst_factor
+from field_oracle import common_part_error, oracle, worst_factor
 
 
 def sweep(seed: int, count: int, column: str = "") -> None:
@@ -51,6 +54,9 @@ def sweep(seed: int, count: int, column: str = "") -> None:
                       sheath2=rec.sheath2 if sheaths[1] else None,
                       static2=(gains[1] / gains[0], 0.0), gases=("rw",)).rmse
         raw = float(np.sqrt(np.mean((rec.t1 - target) ** 2)))
+        # what leaving the sheaths' shared part undone costs, over the oracle (which undoes it)
+        common = common_part_error(rec.t, target, rec.sheath1 if all(sheaths) else None,
+                                   rec.sheath2 if all(sheaths) else None) / best
         label = (f"{case}: tau {tau} ratio {ratio} m {m} {rate:g} Hz sheaths {sheaths} "
                  f"gains {gains}")
         start = time.perf_counter()
@@ -83,7 +89,7 @@ def sweep(seed: int, count: int, column: str = "") -> None:
               f"{evidence.get('misfit_tracked', math.nan):.2f} orders "
               f"{[len(x) for x in result.estimate.time_constants]} adequate {adequate} fits "
               f"{result.model_check.fits} tau rms {tau_rms:.3f} worst {worst:.1f}x "
-              f"{time.perf_counter() - start:.0f} s", flush=True)
+              f"shared sheath part {common:.2f}x {time.perf_counter() - start:.0f} s", flush=True)
 
 
 def _column(rec: fi.Recording, gain: float, column: str) -> np.ndarray | None:

@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+import scipy.signal
 
 from common_lag_study import worlds
 from dualprobe import simulate as sim
@@ -20,22 +21,33 @@ from dualprobe.io import EstimationError, write_columns
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record
-from field_oracle import oracle
+from field_oracle import common_part_error, oracle, through_stage
 from test_field_conditions import ADC, DURATION, NOISE, RATE
 
 
-def _through_stage(t: np.ndarray, u: np.ndarray, tau: np.ndarray) -> np.ndarray:
-    """``u`` through a first-order stage of per-row time constant ``tau``, exact for ``u``
-    linear between rows (written apart from the product's stage chains)."""
-    x = np.empty_like(u)
-    x[0] = u[0]
-    for k in range(u.size - 1):
-        h = t[k + 1] - t[k]
-        z = h / tau[k]
-        a = np.exp(-z)
-        c = -np.expm1(-z) / z
-        x[k + 1] = a * x[k] + (c - a) * u[k] + (1.0 - c) * u[k + 1]
-    return x
+def test_the_stage_helper_is_scipy_s_first_order_hold_response() -> None:
+    """The studies' stage (field_oracle.through_stage) against scipy.signal.lsim, which
+    interpolates the input linearly between samples too, at a constant time constant."""
+    rng = np.random.default_rng(7)
+    t = np.arange(0.0, 30.0, 0.05)
+    u = np.cumsum(rng.normal(0.0, 1.0, t.size))
+    tau = 0.4
+    stage = scipy.signal.StateSpace(-1.0 / tau, 1.0 / tau, 1.0, 0.0)  # its state the output
+    _, expected, _ = scipy.signal.lsim(stage, u, t, X0=[u[0]])
+    # both exact for an input linear between rows: agreement to rounding, scaled to the input
+    assert np.max(np.abs(through_stage(t, u, np.full(t.size, tau)) - expected)) < 1e-9 * np.ptp(u)
+
+
+def test_the_shared_sheath_part_is_the_smaller_sheath_on_every_row() -> None:
+    rng = np.random.default_rng(8)
+    t = np.arange(0.0, 60.0, 0.1)
+    gas = np.cumsum(rng.normal(0.0, 0.3, t.size))
+    s1 = 0.3 + 0.2 * np.sin(t / 5.0)
+    s2 = np.full(t.size, 0.35)
+    seen = through_stage(t, gas, np.minimum(s1, s2))
+    assert common_part_error(t, gas, s1, s2) == pytest.approx(
+        float(np.sqrt(np.mean((seen - gas) ** 2))), rel=1e-12)
+    assert common_part_error(t, gas, s1, None) == 0.0  # nothing shared without a second sheath
 
 
 def test_a_common_sheath_is_not_undone_and_the_summary_says_so() -> None:
@@ -50,7 +62,7 @@ def test_a_common_sheath_is_not_undone_and_the_summary_says_so() -> None:
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother",
                                  flow=rec.flow, flow_column="flow")
     assert result.gas_estimate is not None and result.model_check is not None
-    seen = _through_stage(rec.t, rec.tg, rec.sheath1)
+    seen = through_stage(rec.t, rec.tg, rec.sheath1)
     to_gas = float(np.sqrt(np.mean((result.gas_estimate - rec.tg) ** 2)))
     to_seen = float(np.sqrt(np.mean((result.gas_estimate - seen) ** 2)))
     # the pair sees the gas through the common sheath: measured 0.29 K from that, 4.82 K from
