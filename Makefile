@@ -116,7 +116,7 @@ stubs: setup
 # One BLAS thread per worker: two workers each starting OpenBLAS's two threads oversubscribe
 # the cores (the suite took 13.2 min with one thread per worker, 15-19 min without).
 pytest: setup
-	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(VPY) -m pytest -n 2 --dist loadfile --no-loadscope-reorder $(PYTEST_ARGS)
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(VPY) -m pytest -n 2 --dist loadfile $(PYTEST_ARGS)
 
 firmware: setup
 	$(MAKE) -C firmware_sim report PYTHON=$(abspath $(VPY))
