@@ -23,7 +23,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["OracleResult", "oracle", "ratio_to_oracle", "smooth"]
+__all__ = ["OracleResult", "at_level", "oracle", "ratio_to_oracle", "schedule_blame", "smooth"]
 
 
 def _chain_foh(taus: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -222,6 +222,44 @@ def common_part_error(t: np.ndarray, gas: np.ndarray, sheath1: np.ndarray | None
         return 0.0
     seen = through_stage(t, gas, np.minimum(sheath1, sheath2))
     return float(np.sqrt(np.mean((seen - gas) ** 2)))
+
+
+def at_level(values: np.ndarray) -> float:
+    """The geometric mean: a per-row time constant at the schedule's level (mean log psi 0)."""
+    return float(np.exp(np.mean(np.log(values))))
+
+
+def schedule_blame(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, gas: np.ndarray,
+                   truth: tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray | None],
+                   sigma: tuple[float, float], static2: tuple[float, float],
+                   stages: tuple[tuple[float, ...], tuple[float, ...]], psi: np.ndarray,
+                   found_static2: tuple[float, float]) -> tuple[float, float]:
+    """Where a tracked estimate's gas error comes from: the oracle's smoother given one part of
+    the estimate and the rest true. ``truth``: the per-row element and sheath time constants
+    (element1, element2, sheath1, sheath2; None: no sheath), which all follow one schedule
+    (eq. 1: the generator's stages scale alike); ``static2`` the true (gain, offset) of sensor
+    2 in sensor 1's calibration. The estimate: ``stages`` (each sensor's time constants at
+    the level of ``psi``, element first, then its sheath), its per-row ``psi`` (time constants
+    in effect = stage / psi) and ``found_static2`` (sensor 2's gain and offset as found).
+    Returns the RMSE against ``gas`` of (the estimate's stages and static map on the TRUE
+    schedule, the TRUE stages on the estimate's schedule): near the oracle's in the first,
+    the schedule is the error; in the second, the stages."""
+    element1, element2, sheath1, sheath2 = truth
+    true_psi = at_level(element1) / np.asarray(element1, float)  # mean log 0, as psi's
+    found = np.asarray(psi, float)
+
+    def run(pair: tuple[tuple[float, ...], tuple[float, ...]], schedule: np.ndarray,
+            static: tuple[float, float]) -> float:
+        rows = [[tau / schedule for tau in sensor] for sensor in pair]
+        return oracle(t, y1, y2, gas, rows[0][0], rows[1][0], sigma,
+                      sheath1=rows[0][1] if len(rows[0]) > 1 else None,
+                      sheath2=rows[1][1] if len(rows[1]) > 1 else None,
+                      static2=static, gases=("rw",)).rmse
+
+    true_stages = tuple((at_level(e),) + (() if s is None else (at_level(s),))
+                        for e, s in ((element1, sheath1), (element2, sheath2)))
+    return (run(stages, true_psi, found_static2),
+            run((true_stages[0], true_stages[1]), found, static2))
 
 
 def worst_factor(*ratios: np.ndarray) -> float:

@@ -11,7 +11,9 @@ error with it), "weak" beyond it, "BAD" worse than the raw fast sensor, "REFUSED
 (exit 3); "DISHONEST" marks a result beyond the bound that the model check called adequate.
 "shared sheath part": the error of the gas seen through the part of the sheaths that both
 sensors share, over the oracle's (field_oracle.common_part_error): what an estimate that
-undoes all but that part still misses.
+undoes all but that part still misses. "blame" (tracked results): the oracle given our stages
+on the true schedule, and the true stages on our schedule (field_oracle.schedule_blame), over
+the oracle's: near 1 in the first, our schedule is the error; in the second, our stages.
 """
 
 from __future__ import annotations
@@ -25,7 +27,7 @@ import numpy as np
 import field_independent as fi
 from dualprobe.io import EstimationError
 from dualprobe.workflows.characterise import characterise_arrays
-from field_oracle import common_part_error, oracle, worst_factor
+from field_oracle import common_part_error, oracle, schedule_blame, worst_factor
 
 
 def sweep(seed: int, count: int, column: str = "") -> None:
@@ -68,6 +70,7 @@ def sweep(seed: int, count: int, column: str = "") -> None:
         except EstimationError as exc:
             print("REFUSED", label, str(exc)[:100], flush=True)
             continue
+        elapsed = time.perf_counter() - start  # the characterisation's, not the studies'
         assert result.gas_estimate is not None and result.model_check is not None
         ours = float(np.sqrt(np.mean((result.gas_estimate - target) ** 2)))
         model = result.estimate.flow_model
@@ -81,6 +84,17 @@ def sweep(seed: int, count: int, column: str = "") -> None:
         worst = worst_factor(ratios)
         adequate = result.model_check.adequate
         flag = " DISHONEST" if not within and adequate else ""
+        blame = ""
+        if model is not None and model.kind == "tracked":
+            found = _found_static(result.estimate.details)
+            stages = result.estimate.time_constants
+            parts = schedule_blame(rec.t, rec.t1, rec.t2, target,
+                                   (rec.tau1, rec.tau2, rec.sheath1 if sheaths[0] else None,
+                                    rec.sheath2 if sheaths[1] else None),
+                                   (rec.noise, rec.noise), (gains[1] / gains[0], 0.0),
+                                   (stages[0], stages[1]), model.psi, found)
+            blame = (f" blame: our stages on the true schedule {parts[0] / best:.2f}x, the "
+                     f"true stages on ours {parts[1] / best:.2f}x")
         print(f"{verdict}{flag} {label}: {ours / best:.2f}x (oracle {best:.3f} K, raw / ours "
               f"{raw / ours:.1f}) {model.kind if model else None} m "
               f"{model.exponent if model else math.nan:.3f} sheathed path "
@@ -89,7 +103,18 @@ def sweep(seed: int, count: int, column: str = "") -> None:
               f"{evidence.get('misfit_tracked', math.nan):.2f} orders "
               f"{[len(x) for x in result.estimate.time_constants]} adequate {adequate} fits "
               f"{result.model_check.fits} tau rms {tau_rms:.3f} worst {worst:.1f}x "
-              f"shared sheath part {common:.2f}x {time.perf_counter() - start:.0f} s", flush=True)
+              f"shared sheath part {common:.2f}x{blame} {elapsed:.0f} s",
+              flush=True)
+
+
+def _found_static(details: dict[str, object]) -> tuple[float, float]:
+    """Sensor 2's (gain, offset) as the oracle removes them, from the estimate's affine static
+    model (``T1 = g T2 + o`` in sensor 1's calibration; unit gain without one)."""
+    gain, offset = details.get("gain_ratio"), details.get("offset")
+    if details.get("static_model") != "affine" or not isinstance(gain, float | int) \
+            or not isinstance(offset, float | int):
+        return (1.0, 0.0)
+    return (1.0 / gain, -offset / gain)
 
 
 def _column(rec: fi.Recording, gain: float, column: str) -> np.ndarray | None:

@@ -21,7 +21,7 @@ from dualprobe.io import EstimationError, write_columns
 from dualprobe.workflows.characterisation import Characterisation
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record
-from field_oracle import common_part_error, oracle, through_stage
+from field_oracle import at_level, common_part_error, oracle, schedule_blame, through_stage
 from test_field_conditions import ADC, DURATION, NOISE, RATE
 
 
@@ -48,6 +48,47 @@ def test_the_shared_sheath_part_is_the_smaller_sheath_on_every_row() -> None:
     assert common_part_error(t, gas, s1, s2) == pytest.approx(
         float(np.sqrt(np.mean((seen - gas) ** 2))), rel=1e-12)
     assert common_part_error(t, gas, s1, None) == 0.0  # nothing shared without a second sheath
+
+
+def test_the_blame_falls_on_the_part_of_the_estimate_that_is_off() -> None:
+    """field_oracle.schedule_blame: the oracle given the estimate's stages on the true schedule,
+    and the true stages on the estimate's schedule. Where one part is the truth, its half of
+    the decomposition is the oracle itself and the other half carries the error."""
+    rec = record(9, duration=300.0, tau=4.0, ratio=3.0, m=0.5, sheaths=(0.4, 0.6))
+    truth = (rec.tau1, rec.tau2, rec.sheath1, rec.sheath2)
+    sigma = (rec.noise, rec.noise)
+    best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, sigma,
+                  sheath1=rec.sheath1, sheath2=rec.sheath2, gases=("rw",)).rmse
+    psi = at_level(rec.tau1) / rec.tau1  # the true schedule, mean log 0
+
+    stages = ((at_level(rec.tau1), at_level(rec.sheath1)),
+              (at_level(rec.tau2), at_level(rec.sheath2)))
+    unit = (1.0, 0.0)
+    # The per-row constants rebuilt from levels and psi equal the truth's to rounding (2e-16),
+    # but the oracle's search for its intensity q compares RMSEs that are flat at the optimum:
+    # a 1e-15 change of one sensor's constants moved its RMSE by 6e-5 (measured). So 1e-3.
+    same = 1e-3
+    # the truth as the estimate: both halves the oracle
+    for half in schedule_blame(rec.t, rec.t1, rec.t2, rec.gas, truth, sigma, unit, stages,
+                               psi, unit):
+        assert half == pytest.approx(best, rel=same)
+    # a schedule with half the truth's swing in log (a smeared MAP psi does that where the load
+    # changes fast): the stages' half unmoved
+    wrong = np.sqrt(psi)
+    ours_on_true, true_on_ours = schedule_blame(rec.t, rec.t1, rec.t2, rec.gas, truth, sigma,
+                                                unit, stages, wrong, unit)
+    assert ours_on_true == pytest.approx(best, rel=same)
+    # measured 4.66x; 2x keeps it far from the untouched half's 1 (the record's first 5 min:
+    # psi 0.92-2.77 over an idle start and a pull-away, the gas over 244 K)
+    assert true_on_ours > 2.0 * best, true_on_ours / best
+    # the sheaths left out (a first-order estimate) on the true schedule: the schedule's half
+    # unmoved
+    short = ((stages[0][0],), (stages[1][0],))
+    ours_on_true, true_on_ours = schedule_blame(rec.t, rec.t1, rec.t2, rec.gas, truth, sigma,
+                                                unit, short, psi, unit)
+    assert true_on_ours == pytest.approx(best, rel=same)
+    # measured 1.67x: the 0.4 s both share is not undone (beside the 1e-3 of an untouched half)
+    assert ours_on_true > 1.3 * best, ours_on_true / best
 
 
 def test_a_common_sheath_is_not_undone_and_the_summary_says_so() -> None:
