@@ -6,16 +6,11 @@ oracle; sheaths missed altogether, 5.3x. Its own file: about 160 s (--dist loadf
 
 from __future__ import annotations
 
-import numpy as np
-
 import field_independent as fi
 from dualprobe.workflows.characterise import characterise_arrays
+from field_oracle import at_level
 from test_field_conditions import Case, _oracle_rmse, _record, _rmse
 from test_field_independent import _oracle_rmse as independent_oracle_rmse
-
-
-def _geometric_mean(values: np.ndarray) -> float:
-    return float(np.exp(np.mean(np.log(values))))
 
 
 def test_a_single_sheath_is_profiled_to_where_the_gas_is_right() -> None:
@@ -32,8 +27,8 @@ def test_a_single_sheath_is_profiled_to_where_the_gas_is_right() -> None:
     assert [len(pair) for pair in taus] == [1, 2]
     # Both at the schedule's level (the mean of log psi 0): the time constants in effect over
     # the record's geometric mean. Measured: the sheath 0.72 s before the profile (12 % short).
-    sheath = _geometric_mean(taus[1][1] / model.psi)
-    truth = _geometric_mean(rec.sheath2)
+    sheath = at_level(taus[1][1] / model.psi)
+    truth = at_level(rec.sheath2)
     assert abs(sheath / truth - 1.0) < 0.08, (sheath, truth)
     assert result.gas_estimate is not None
     ours = _rmse(result.gas_estimate, case.gains[0] * rec.tg)
@@ -57,7 +52,7 @@ def test_sheaths_the_cross_relation_missed_are_seeded() -> None:
     taus = result.estimate.time_constants
     assert [len(pair) for pair in taus] == [2, 2]
     # measured 0.25 / 0.42 s (the MAP's pull shortens sheaths, README); ordered as the truth
-    found = [_geometric_mean(pair[1] / model.psi) for pair in taus]
+    found = [at_level(pair[1] / model.psi) for pair in taus]
     assert 0.5 * sheaths[0] < found[0] < found[1] < 1.2 * sheaths[1], found
     assert result.gas_estimate is not None
     ours = _rmse(result.gas_estimate, rec.gas)
@@ -79,10 +74,10 @@ def _fast_sheath_pair(case: int, tau: float, ratio: float, m: float, sheath: flo
     assert model is not None and model.sheathed_path
     taus = result.estimate.time_constants
     assert [len(pair) for pair in taus] == [2, 1], taus
-    at_mean = [tuple(_geometric_mean(stage / model.psi) for stage in pair) for pair in taus]
+    at_mean = [tuple(at_level(stage / model.psi) for stage in pair) for pair in taus]
     assert result.gas_estimate is not None
     ours = _rmse(result.gas_estimate, rec.gas)
-    return (at_mean, at_mean[0][1] / _geometric_mean(rec.sheath1) - 1.0,
+    return (at_mean, at_mean[0][1] / at_level(rec.sheath1) - 1.0,
             ours / independent_oracle_rmse(rec, gains))
 
 
