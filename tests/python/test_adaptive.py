@@ -72,3 +72,28 @@ def test_rows_where_the_freer_psi_is_not_positive_keep_the_tracked_one(
     best = oracle(rec.t, rec.t1, rec.t2, rec.gas, rec.tau1, rec.tau2, (rec.noise, rec.noise),
                   gases=("rw",)).rmse
     assert _rms(result.gas_estimate - rec.gas) <= 1.5 * best
+
+
+def test_the_share_kept_is_what_both_halves_repeat_and_nothing_where_they_do_not() -> None:
+    # keep_repeated alone (it serves the first-order tracking and the sheathed MAP): a
+    # departure of 0.1 RMS that the whole record and both halves repeat in the first half of
+    # the rows, pure noise (0.03 in each half) in the second. Expected share there s / (s + n)
+    # with s = 0.005 and n = 2 * 0.03^2 / 4 = 0.00045: 0.92; in the second half, 0 up to the
+    # noise of a mean product over a 200-row window.
+    rng = np.random.default_rng(3)
+    n, width = 4000, 200
+    rows = np.arange(n)
+    departure = np.where(rows < n // 2, 0.1 * np.sqrt(2.0) * np.sin(rows / 40.0), 0.0)
+    own = np.zeros(n)
+    even, odd = (departure + rng.normal(0.0, 0.03, n) for _ in range(2))
+    freer = departure + rng.normal(0.0, 0.03 / np.sqrt(2.0), n)  # twice the rows: half the var
+    kept = adaptive.keep_repeated(own, freer, even, odd, np.ones(n, bool), width)
+    first, second = slice(0, n // 2 - width), slice(n // 2 + width, n)
+    # (windows straddling the change share both halves' shares: left out)
+    assert _rms(kept.log_psi[first] - freer[first]) < 0.2 * _rms(departure[first])
+    assert _rms(kept.log_psi[second]) < 0.3 * 0.03 / np.sqrt(2.0)
+    assert 0.3 < kept.share < 0.6  # about half the rows at 0.92, half near 0
+    # rows not defined keep their own value, and a window holding one keeps nothing
+    defined = rows != 100
+    held = adaptive.keep_repeated(own, freer, even, odd, defined, width)
+    assert held.log_psi[100] == own[100]

@@ -33,7 +33,7 @@ import numpy as np
 from dualprobe.estimation import tracking
 from dualprobe.estimation.engine import Fit
 
-__all__ = ["FREER", "WINDOW", "Adapted", "adapt"]
+__all__ = ["FREER", "WINDOW", "Adapted", "Kept", "adapt", "keep_repeated"]
 
 FREER = 0.1  # of the chosen penalty
 WINDOW = 30.0  # s: a manoeuvre's length on a drive cycle (as workflows/undetermined.py)
@@ -77,8 +77,32 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
     if not np.any(defined):
         return None
     freer, even, odd, own = (x - float(np.mean(x[defined])) for x in logs)
+    kept = keep_repeated(own, freer, even, odd, defined, max(2, round(WINDOW / fit.ts)))
+    psi = np.exp(kept.log_psi)
+    # mean 1, as the tracking's (tracking.solve_penalised): the reported time constants stay
+    # those at the record's mean factor
+    return Adapted(psi / float(np.mean(psi)), kept.share, kept.noise)
+
+
+@dataclass(frozen=True)
+class Kept:
+    """``log_psi`` (N,) the tracked log psi with the kept share of the freer one's departure;
+    ``share`` the mean share kept; ``noise`` the RMS of the log psi noise that share brings."""
+
+    log_psi: np.ndarray
+    share: float
+    noise: float
+
+
+def keep_repeated(own: np.ndarray, freer: np.ndarray, even: np.ndarray, odd: np.ndarray,
+                  defined: np.ndarray, width: int) -> Kept:
+    """The share of ``freer - own`` that the even and odd halves repeat (``even``, ``odd``:
+    their freer log psi at every row), per window of ``width`` rows (half overlapping) and
+    interpolated between window centres, as the module docstring says. All four are log psi
+    (N,) centred alike; rows not ``defined`` keep ``own``, and a window holding one keeps
+    nothing."""
+    n = own.size
     de, do = even - own, odd - own
-    width = max(2, round(WINDOW / fit.ts))
     centres, shares, noises = [], [], []
     for start in range(0, n, width // 2):
         stop = min(n, start + width)
@@ -90,12 +114,10 @@ def adapt(t1: np.ndarray, t2: np.ndarray, fit: Fit, tracked: tracking.Tracking,
         centres.append(0.5 * (start + stop - 1))
         shares.append(share)
         noises.append(share * share * noise)
+    rows = np.arange(n)
     share_at = np.interp(rows, centres, shares)
-    psi = np.exp(own + share_at * np.where(defined, freer - own, 0.0))
-    # mean 1, as the tracking's (tracking.solve_penalised): the reported time constants stay
-    # those at the record's mean factor
-    return Adapted(psi / float(np.mean(psi)), float(np.mean(share_at)),
-                   math.sqrt(float(np.mean(np.interp(rows, centres, noises)))))
+    return Kept(own + share_at * np.where(defined, freer - own, 0.0), float(np.mean(share_at)),
+                math.sqrt(float(np.mean(np.interp(rows, centres, noises)))))
 
 
 def _log(psi: np.ndarray, at: np.ndarray, rows: np.ndarray) -> np.ndarray:
