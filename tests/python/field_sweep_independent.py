@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Container
 
 import numpy as np
 
@@ -30,9 +31,10 @@ from dualprobe.workflows.characterise import characterise_arrays
 from field_oracle import common_part_error, oracle, schedule_blame, worst_factor
 
 
-def sweep(seed: int, count: int, column: str = "") -> None:
+def sweep(seed: int, count: int, column: str = "", only: Container[int] | None = None) -> None:
     """``column``: "" (none), "flow" (the mass flow) or "velocity" (mass flow x gas: what the
-    time constants follow, eq. 1, as a velocity model would give it)."""
+    time constants follow, eq. 1, as a velocity model would give it); ``only``: the draws
+    (0 .. count-1) to run, every one where None."""
     with_flow = bool(column)
     rng = np.random.default_rng(seed)
     for k in range(count):
@@ -48,6 +50,8 @@ def sweep(seed: int, count: int, column: str = "") -> None:
                  if rng.random() < 0.5 else [1.0, 1.0])
         gains = (drawn[0], drawn[1])
         case = seed * 100 + k
+        if only is not None and k not in only:
+            continue
         rec = fi.record(case, tau=tau, ratio=ratio, m=m, rate=rate, sheaths=sheaths,
                         gains=gains)
         target = rec.gas  # already in sensor 1's calibration
@@ -99,7 +103,8 @@ def sweep(seed: int, count: int, column: str = "") -> None:
               f"{raw / ours:.1f}) {model.kind if model else None} m "
               f"{model.exponent if model else math.nan:.3f} sheathed path "
               f"{evidence.get('sheathed_path', 0.0):g} psi_noise "
-              f"{evidence.get('psi_noise', math.nan):.3f} misfit "
+              f"{evidence.get('psi_noise', math.nan):.3f} freed "
+              f"{evidence.get('freed_share', 0.0):.2f} misfit "
               f"{evidence.get('misfit_tracked', math.nan):.2f} orders "
               f"{[len(x) for x in result.estimate.time_constants]} adequate {adequate} fits "
               f"{result.model_check.fits} tau rms {tau_rms:.3f} worst {worst:.1f}x "
