@@ -1,6 +1,7 @@
 """A schedule psi from the joint MAP (:func:`psi_map.map_psi`) on a whole record, without a
 flow signal: on the rows, or on block means where the record is long (:func:`block_means`),
-each block's psi put back at every row. Used by the sheathed path
+each block's psi put back at every row; :meth:`MapSchedule.freed` frees it where the even and
+odd blocks repeat a looser prior's psi. Used by the sheathed path
 (:mod:`dualprobe.estimation.without_flow`) and by the rival schedule that tests whether the
 data determine a tracked one (:mod:`dualprobe.estimation.rival`).
 """
@@ -12,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from dualprobe.estimation import level, psi_map, tracking
+from dualprobe.estimation import adaptive, level, psi_map, tracking
 from dualprobe.estimation.engine import Fit
 
 __all__ = ["SHEATHED_MAX_ROWS", "MapSchedule", "block_means"]
@@ -26,6 +27,7 @@ __all__ = ["SHEATHED_MAX_ROWS", "MapSchedule", "block_means"]
 SHEATHED_MAX_ROWS = 60_000
 _SHEATHED_RATE = 10.0  # Hz: block means slower than this would blur the sheaths (0.1-0.8 s)
 _PSI_STEP = 0.05  # prior sd of log psi over tf (from knot to knot with one knot per tf)
+_FREER_STEP = 4.0  # times _PSI_STEP: the looser prior of MapSchedule.freed (studied: README)
 _KNOTS_PER_TF = 8  # psi's knots: load steps move it by 2x within a second
 _REWEIGHTINGS = 2  # heavy-tailed priors in the MAP (psi_map.map_psi)
 _GAS_SAFETY = 4.0  # see gas_intensity
@@ -63,8 +65,9 @@ class MapSchedule:
         self.q = gas_intensity(self.a, self.ts, self.fit.tf, tau)
 
     def solve(self, stages: Sequence[tuple[float, ...]], rows: slice = slice(None),
-              ) -> psi_map.PsiMap | None:
-        """The MAP of these block rows, knots every ``spacing`` blocks' time."""
+              looser: float = 1.0) -> psi_map.PsiMap | None:
+        """The MAP of these block rows, knots every ``spacing`` blocks' time; ``looser`` times
+        the prior's knot steps."""
         step = rows.step or 1
         knots = max(1, round(self.spacing / step))
         y1, y2 = self.a[rows], self.b[rows]
@@ -73,15 +76,16 @@ class MapSchedule:
             return psi_map.map_psi(np.arange(y1.size) * self.ts * step, y1, y2, stages[0],
                                    stages[1], (1.0 / gain, -offset / gain), self.sigma, self.q,
                                    knots,
-                                   _PSI_STEP * math.sqrt(knots * step * self.ts / self.fit.tf),
+                                   looser * _PSI_STEP
+                                   * math.sqrt(knots * step * self.ts / self.fit.tf),
                                    reweightings=_REWEIGHTINGS)
         except (ValueError, np.linalg.LinAlgError, RuntimeError):
             return None
 
     def map_log(self, stages: Sequence[tuple[float, ...]], rows: slice = slice(None),
-                ) -> np.ndarray | None:
+                looser: float = 1.0) -> np.ndarray | None:
         """The MAP log psi of these block rows (mean 0)."""
-        found = self.solve(stages, rows)
+        found = self.solve(stages, rows, looser)
         if found is None:
             return None
         log_psi = np.log(found.psi)
@@ -90,10 +94,36 @@ class MapSchedule:
     def schedule(self, stages: Sequence[tuple[float, ...]]) -> np.ndarray | None:
         """The MAP psi at every row (each block's at its centre, linear between), mean log 0."""
         log_psi = self.map_log(stages)
-        if log_psi is None:
-            return None
+        return None if log_psi is None else self._at_rows(log_psi)
+
+    def _at_rows(self, log_psi: np.ndarray) -> np.ndarray:
+        """psi at every row from log psi at the blocks (linear between centres), mean log 0."""
         out = np.interp(np.arange(self.rows) * self.fit.ts, self.centres, log_psi)
         return np.exp(out - float(np.mean(out)))
+
+    def freed(self, stages: Sequence[tuple[float, ...]]) -> tuple[np.ndarray, float, float] | None:
+        """The schedule with the share of a looser prior's departure from it that the even and
+        odd blocks repeat (:func:`adaptive.keep_repeated`, windows of ``adaptive.WINDOW``):
+        psi at every row (mean log 0), the mean share kept and the log psi noise it brings;
+        None where a MAP fails.
+
+        Why: the prior's knot steps (``_PSI_STEP``, heavy-tailed up to psi_map's cap) hold psi
+        back where the load swings fast. Where the load went 500-580 K every 5.5 s the true
+        psi swung 0.8-1.7 and the MAP's 1.0-1.3 (pair 30603 of field_sweep_independent.py,
+        2.50x the oracle; ``_FREER_STEP`` times the step everywhere: 1.88x, but another pair
+        2.11x -> 2.85x, README), so a looser psi is kept only where the data repeat it."""
+        own = self.map_log(stages)
+        freer = self.map_log(stages, looser=_FREER_STEP)
+        halves = [self.map_log(stages, slice(k, None, 2), _FREER_STEP) for k in (0, 1)]
+        if own is None or freer is None or halves[0] is None or halves[1] is None:
+            return None
+        blocks = np.arange(own.size)
+        even, odd = (np.interp(blocks, blocks[k::2][:half.size], half)
+                     for k, half in ((0, halves[0]), (1, halves[1])))
+        logs = [x - float(np.mean(x)) for x in (own, freer, even, odd)]
+        kept = adaptive.keep_repeated(*logs, np.ones(own.size, bool),
+                                      max(2, round(adaptive.WINDOW / self.ts)))
+        return self._at_rows(kept.log_psi), kept.share, kept.noise
 
     def psi_noise(self, stages: Sequence[tuple[float, ...]]) -> float:
         """How much of the MAP psi follows the noise, as tracking.split_noise measures the
