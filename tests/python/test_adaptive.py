@@ -90,9 +90,12 @@ def test_the_share_kept_is_what_both_halves_repeat_and_nothing_where_they_do_not
     kept = adaptive.keep_repeated(own, freer, even, odd, np.ones(n, bool), width)
     first, second = slice(0, n // 2 - width), slice(n // 2 + width, n)
     # (windows straddling the change share both halves' shares: left out)
+    # measured 0.046 of the departure and 0.11 of the freer psi's noise; the bounds allow
+    # a share of 0.8 and a third of the noise passed through, short of either failure (the
+    # departure dropped, the noise kept)
     assert _rms(kept.log_psi[first] - freer[first]) < 0.2 * _rms(departure[first])
     assert _rms(kept.log_psi[second]) < 0.3 * 0.03 / np.sqrt(2.0)
-    assert 0.3 < kept.share < 0.6  # about half the rows at 0.92, half near 0
+    assert 0.3 < kept.share < 0.6  # about half the rows at 0.92, half near 0: measured 0.54
     # rows not defined keep their own value, and a window holding one keeps nothing
     defined = rows != 100
     held = adaptive.keep_repeated(own, freer, even, odd, defined, width)
