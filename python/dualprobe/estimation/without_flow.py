@@ -34,7 +34,12 @@ from dualprobe.estimation.map_schedule import MapSchedule
 from dualprobe.estimation.orders import COMPLEX_NOTE
 from dualprobe.estimation.result import PairEstimate
 from dualprobe.estimation.rival import rival_schedule
-from dualprobe.estimation.settings import GAP_THRESHOLD, PSI_NOISE_LIMIT, dip_beyond_record
+from dualprobe.estimation.settings import (
+    GAP_THRESHOLD,
+    PSI_NOISE_LIMIT,
+    RECORD_FRACTION,
+    dip_beyond_record,
+)
 from dualprobe.estimation.sheath_profile import profile_sheaths
 
 __all__ = ["track_without_flow"]
@@ -393,12 +398,17 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     # engine fits it better: the halves share the stages' errors, and a looser psi that
     # absorbs them repeats in both (pair 30701 of field_sweep_independent.py: share 0.63, the
     # misfit 0.68 -> 0.98 times the noise, 2.11x -> 2.49x the oracle; 30603: 1.28 -> 0.92,
-    # 2.50x -> 2.00x)
+    # 2.50x -> 2.00x). And not where it reaches beyond the record (the refusal's test): on a
+    # 60 s record with 7 s of idle (test_idle_start.py) the freed psi put a 7.2-fold dip at
+    # 15 s where the MAP's stood in the idle, and the refusal named the wrong cause.
     freed = maps.freed(stages)
     extra: dict[str, float] = {}
     if freed is not None and freed[1] > 0.0:
         candidate = run(freed[0])
-        if candidate.status == "ok" and fit_of(candidate).misfit < fit_of(estimate).misfit:
+        duration = (t1.size - 1) * fit.ts
+        if (candidate.status == "ok" and fit_of(candidate).misfit < fit_of(estimate).misfit
+                and max(max(taus) for taus in candidate.time_constants)
+                / float(np.min(freed[0])) <= RECORD_FRACTION * duration):
             psi, estimate = freed[0], candidate
             noise = math.hypot(noise, freed[2])
             extra = {"freed_share": freed[1]}
