@@ -55,6 +55,9 @@ class MapSchedule:
         self.centres = (np.arange(self.a.size) * self.size + 0.5 * (self.size - 1)) * fit.ts
         self.static = (1.0, 0.0)
         self.q = math.nan
+        # map_log's results by (stages, rows, looser): the sheathed path asks for the same
+        # MAP up to three times (schedule, psi_noise, freed's own); it is deterministic
+        self._logs: dict[tuple[object, ...], np.ndarray | None] = {}
 
     def set_model(self, static: tuple[float, float], tau: float) -> None:
         """``static``: (gain, offset) of sensor 1 on sensor 2, ``T1 = gain T2 + offset`` (the
@@ -63,6 +66,7 @@ class MapSchedule:
         ValueError where the gas prior cannot be formed."""
         self.static = static
         self.q = gas_intensity(self.a, self.ts, self.fit.tf, tau)
+        self._logs.clear()
 
     def solve(self, stages: Sequence[tuple[float, ...]], rows: slice = slice(None),
               looser: float = 1.0) -> psi_map.PsiMap | None:
@@ -85,11 +89,14 @@ class MapSchedule:
     def map_log(self, stages: Sequence[tuple[float, ...]], rows: slice = slice(None),
                 looser: float = 1.0) -> np.ndarray | None:
         """The MAP log psi of these block rows (mean 0)."""
-        found = self.solve(stages, rows, looser)
-        if found is None:
-            return None
-        log_psi = np.log(found.psi)
-        return log_psi - float(np.mean(log_psi)) if np.all(np.isfinite(log_psi)) else None
+        key = (tuple(tuple(pair) for pair in stages), rows.start, rows.stop, rows.step, looser)
+        if key not in self._logs:
+            found = self.solve(stages, rows, looser)
+            log_psi = np.log(found.psi) if found is not None else None
+            self._logs[key] = (log_psi - float(np.mean(log_psi)) if log_psi is not None
+                               and np.all(np.isfinite(log_psi)) else None)
+        cached = self._logs[key]
+        return None if cached is None else cached.copy()
 
     def schedule(self, stages: Sequence[tuple[float, ...]]) -> np.ndarray | None:
         """The MAP psi at every row (each block's at its centre, linear between), mean log 0."""

@@ -19,6 +19,7 @@ __all__ = [
     "RESOLUTION_FLOOR",
     "SHARED_FACTOR",
     "SHEATHED_SCHEDULE_ERROR",
+    "beyond_record",
     "choose_filter_time_constant",
     "dip_beyond_record",
     "discretisation_noise_std",
@@ -57,6 +58,13 @@ DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling cl
 # T_g_std had an RMS of 1.14-5.55 without it and 0.51-2.07 with it on five of them (1.1x-4.0x
 # the oracle; 30108, 3.1x, is the 2.07).
 SHEATHED_SCHEDULE_ERROR = 0.08
+
+
+def beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
+    """Whether a sensor's longest time constant at psi's least (``taus`` at psi = 1) is longer
+    than ``RECORD_FRACTION`` of the record, or not finite."""
+    longest = max(taus) / float(np.min(psi))
+    return not (math.isfinite(longest) and longest <= RECORD_FRACTION * duration)
 
 
 def dip_beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:

@@ -37,7 +37,7 @@ from dualprobe.estimation.rival import rival_schedule
 from dualprobe.estimation.settings import (
     GAP_THRESHOLD,
     PSI_NOISE_LIMIT,
-    RECORD_FRACTION,
+    beyond_record,
     dip_beyond_record,
 )
 from dualprobe.estimation.sheath_profile import profile_sheaths
@@ -407,8 +407,8 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         candidate = run(freed[0])
         duration = (t1.size - 1) * fit.ts
         if (candidate.status == "ok" and fit_of(candidate).misfit < fit_of(estimate).misfit
-                and max(max(taus) for taus in candidate.time_constants)
-                / float(np.min(freed[0])) <= RECORD_FRACTION * duration):
+                and not any(beyond_record(taus, freed[0], duration)
+                            for taus in candidate.time_constants)):
             psi, estimate = freed[0], candidate
             noise = math.hypot(noise, freed[2])
             extra = {"freed_share": freed[1]}
