@@ -14,7 +14,8 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["GramBand", "band_solver", "bordered_solver", "lower_band", "spd_solver"]
+__all__ = ["GramBand", "Pattern", "band_solver", "bordered_solver", "lower_band", "row_pairs",
+           "spd_solver"]
 
 
 def _inverse(order: np.ndarray) -> np.ndarray:
@@ -44,7 +45,42 @@ def lower_band(matrix: sp.spmatrix, order: np.ndarray | None = None) -> np.ndarr
                        minlength=width * size).reshape(width, size)
 
 
-class GramBand:
+def row_pairs(indices: np.ndarray, place: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair of stored values of a sparse J (CSC row ``indices``) that share a row, once,
+    as positions ``p``, ``q`` in J's stored values with ``place[p] > place[q]`` or ``p == q``
+    (``place``: each stored value's unknown, in the order wanted): the pairs whose products
+    sum to J'J's lower triangle in that order. Each (row, column) must be stored once."""
+    by_row = np.argsort(indices, kind="stable")  # the stored values, row by row
+    row = indices[by_row]
+    starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
+    lengths = np.diff(np.r_[starts, row.size])
+    first, second = [], []
+    longest = int(lengths.max(initial=0))
+    for i in range(longest):
+        for j in range(longest):
+            rows = starts[lengths > max(i, j)]
+            p, q = by_row[rows + i], by_row[rows + j]
+            keep = place[p] > place[q] if i != j else np.ones(p.size, bool)
+            first.append(p[keep])
+            second.append(q[keep])
+    return np.concatenate(first), np.concatenate(second)
+
+
+class Pattern:
+    """A sparse J's fixed CSC structure (row ``indices``, column pointers ``indptr``, columns),
+    against which a later J is checked before values computed for it are reused."""
+
+    def __init__(self, indices: np.ndarray, indptr: np.ndarray, columns: int) -> None:
+        self.indices, self.indptr = np.asarray(indices), np.asarray(indptr)
+        self.size = columns
+
+    def fits(self, matrix: sp.csc_matrix) -> bool:
+        """Whether ``matrix`` (CSC) has this pattern."""
+        return (matrix.shape[1] == self.size and np.array_equal(matrix.indptr, self.indptr)
+                and np.array_equal(matrix.indices, self.indices))
+
+
+class GramBand(Pattern):
     """The lower band of ``J' J`` (banded storage, as :func:`lower_band`) for every sparse ``J``
     of one fixed pattern, straight from J's stored values: no sparse product, no sorting. Why:
     a Gauss-Newton loop forms J'J of the same pattern at every trial; the product and the
@@ -54,33 +90,13 @@ class GramBand:
 
     def __init__(self, indices: np.ndarray, indptr: np.ndarray, columns: int,
                  order: np.ndarray | None = None) -> None:
-        self.indices, self.indptr = np.asarray(indices), np.asarray(indptr)
+        super().__init__(indices, indptr, columns)
         col = np.repeat(np.arange(columns), np.diff(self.indptr))
         place = col if order is None else _inverse(order)[col]
-        by_row = np.argsort(self.indices, kind="stable")  # the stored values, row by row
-        row = self.indices[by_row]
-        starts = np.flatnonzero(np.r_[True, row[1:] != row[:-1]])
-        lengths = np.diff(np.r_[starts, row.size])
-        first, second = [], []
-        longest = int(lengths.max(initial=0))
-        # every pair of values in a row, once: its two columns' places ordered (i >= j in J'J)
-        for i in range(longest):
-            for j in range(longest):
-                rows = starts[lengths > max(i, j)]
-                p, q = by_row[rows + i], by_row[rows + j]
-                keep = place[p] > place[q] if i != j else np.ones(p.size, bool)
-                first.append(p[keep])
-                second.append(q[keep])
-        self.p, self.q = np.concatenate(first), np.concatenate(second)
+        self.p, self.q = row_pairs(self.indices, place)
         offset = place[self.p] - place[self.q]
-        self.size = columns
         self.width = int(offset.max(initial=0)) + 1
         self.target = offset * columns + place[self.q]
-
-    def fits(self, matrix: sp.csc_matrix) -> bool:
-        """Whether ``matrix`` (CSC) has this pattern."""
-        return (matrix.shape[1] == self.size and np.array_equal(matrix.indptr, self.indptr)
-                and np.array_equal(matrix.indices, self.indices))
 
     def band(self, data: np.ndarray) -> np.ndarray:
         """The lower band of J'J for J of this pattern with stored values ``data``."""

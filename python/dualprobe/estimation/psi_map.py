@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from dualprobe.estimation.banded import GramBand, band_solver
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.reuse import reused
+from dualprobe.estimation.sparse_ldl import GramLDL
 
 __all__ = ["PsiMap", "map_psi"]
 
@@ -125,16 +126,12 @@ class _Problem:
         # each interval's two knots and their hat-function weights
         self.pair, self.weight = np.stack([j, right], axis=1), np.stack([1.0 - f, f], axis=1)
         self.centre = float(np.mean(y[0]))
-        # the unknowns (states row by row, then the knots) in time order, each knot among the
-        # rows it reaches: the damped normal matrix is then banded (banded.GramBand)
-        keys = np.concatenate([np.repeat(np.arange(self.n, dtype=float), self.nx),
-                               np.arange(self.knots) * float(spacing) - 0.25])
-        self.order = np.argsort(keys, kind="stable")
         self.position, self.csc, self.count = self._pattern()
-        # J'J's band straight from J's values: the states' Jacobian (its pattern is fixed) and
-        # the joint one with the knots (checked against its pattern at every use)
+        # J'J straight from J's values: the states' Jacobian (its pattern is fixed; banded row by
+        # row) and the joint one with the knots (checked against its pattern at every use; each
+        # knot reaches the states of two spans, so its band would be wide: sparse LDL')
         self.states_gram = GramBand(*self.csc, self.n * self.nx)
-        self.joint_gram: GramBand | None = None
+        self.joint_gram: GramLDL | None = None
         self.total = self.count + 2 * self.knots - 1  # the residuals: then the knots' priors
 
     def zeta(self, z: np.ndarray) -> np.ndarray:
@@ -246,31 +243,25 @@ class _Problem:
         solve = band_solver(self.states_gram.band(lin.a.data), None, lambda: lin.a.T @ lin.a)
         return x + solve(-(lin.a.T @ (lin.a @ x + lin.c))), lin
 
-    def joint_band(self, jacobian: sp.csc_matrix) -> np.ndarray:
-        """The lower band of J'J, the unknowns in time order, for the joint Jacobian of states
-        and knots (CSC)."""
-        jacobian.sum_duplicates()  # GramBand needs each (row, column) once; a no-op if so
+    def joint_gram_of(self, jacobian: sp.csc_matrix) -> GramLDL:
+        """J'J's pattern for the joint Jacobian of states and knots (CSC), built at its first
+        use and kept while the pattern holds."""
+        jacobian.sum_duplicates()  # the pattern needs each (row, column) once; a no-op if so
         if self.joint_gram is None or not self.joint_gram.fits(jacobian):
-            self.joint_gram = GramBand(jacobian.indices, jacobian.indptr, jacobian.shape[1],
-                                       self.order)
-        return self.joint_gram.band(jacobian.data)
+            self.joint_gram = GramLDL(jacobian.indices, jacobian.indptr, jacobian.shape[1])
+        return self.joint_gram
 
 
-def _damped_step(jacobian: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad: np.ndarray,
-                 damping: float, sparse_count: int, state_count: int, order: np.ndarray,
-                 ) -> np.ndarray:
+def _damped_step(gram: GramLDL, values: np.ndarray, b: np.ndarray, grad: np.ndarray,
+                 damping: float, state_count: int) -> np.ndarray:
     """Solve (J'J + damping diag on the parameters) step = -J'r, with the static map's two
-    dense columns by a Schur complement (the sparse factor stays banded, in ``order``;
-    ``band`` J'J's lower band in that order, built once for the search's trials; J the
-    sparse ``jacobian``)."""
-    diag = np.empty(sparse_count)
-    diag[order] = band[0]  # the band's first row is the diagonal, in order
-    damp = np.zeros(sparse_count)
-    damp[state_count:] = damping * np.maximum(diag[state_count:], 1e-12)
-    damped = band.copy()
-    damped[0] += damp[order]
-    solve = band_solver(damped, order,
-                        lambda: (jacobian.T @ jacobian).tocsc() + sp.diags(damp))
+    dense columns by a Schur complement (the sparse part by sparse LDL'; ``values`` J'J's
+    stored upper triangle in ``gram``'s pattern, built once for the search's trials)."""
+    sparse_count = gram.size
+    where = gram.diagonal[state_count:]
+    damped = values.copy()
+    damped[where] += damping * np.maximum(values[where], 1e-12)
+    solve = gram.solver(damped)
     cross, corner = b[:sparse_count], b[sparse_count:]
     corner = corner + np.diag(damping * np.maximum(np.diag(corner), 1e-12))
     solved = solve(np.column_stack([-grad[:sparse_count], cross]))
@@ -281,14 +272,13 @@ def _damped_step(jacobian: sp.csc_matrix, band: np.ndarray, b: np.ndarray, grad:
 
 
 def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
-           jacobian: sp.csc_matrix, band: np.ndarray, coupling: np.ndarray, grad: np.ndarray,
+           gram: GramLDL, values: np.ndarray, coupling: np.ndarray, grad: np.ndarray,
            damping: float,
            ) -> tuple[tuple[np.ndarray, ...], float]:
     """One damped step from ``state`` (states, log psi knots, static map), the states then
     re-solved for the new psi: the new (state, residuals, Jacobians) and its cost."""
     x, z, mapping = state
-    step = _damped_step(jacobian, band, coupling, grad, damping, jacobian.shape[1], x.size,
-                        problem.order)
+    step = _damped_step(gram, values, coupling, grad, damping, x.size)
     z_new = z + step[x.size:x.size + problem.knots]
     map_new = mapping + step[x.size + problem.knots:]
     x_new, lin = problem.states_for(z_new, map_new, x + step[:x.size])
@@ -309,9 +299,9 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
         sparse = sp.hstack([a_x, a_z]).tocsc()
         coupling = np.vstack([sparse.T @ a_s, a_s.T @ a_s])
         grad = np.concatenate([sparse.T @ res, a_s.T @ res])
-        band = problem.joint_band(sparse)
-        attempt = functools.partial(_trial, problem, (x, z, mapping), sparse, band, coupling,
-                                    grad)
+        gram = problem.joint_gram_of(sparse)
+        attempt = functools.partial(_trial, problem, (x, z, mapping), gram,
+                                    gram.values(sparse.data), coupling, grad)
         accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
         if accepted is None:
             break
