@@ -1,9 +1,11 @@
 """Sparse symmetric positive definite systems whose unknowns can be ordered so that the matrix
 is banded (states of a time series, knots of a schedule): solved by banded Cholesky
 (LAPACK ``pbtrf`` through :func:`scipy.linalg.cholesky_banded`) in that order, in O(N w^2) for
-N unknowns of half-bandwidth w. SuperLU's fill-reducing ordering does not know the time axis:
-on the joint MAP of psi (:mod:`dualprobe.estimation.psi_map`; 18 000 rows, 5 states a row and
-knots at the end) its factorisations were most of the sheathed path's time."""
+N unknowns of half-bandwidth w. SuperLU's fill-reducing ordering does not know the time axis.
+Used for the MAP of psi's states row by row (:mod:`dualprobe.estimation.psi_map`), the
+cross-relation's knots (:mod:`crossfit`) and the tracking pencil (:mod:`tracking`). Where a few
+unknowns each reach many rows (psi's knots among the MAP's states) the band is wide but mostly
+zeros: :mod:`dualprobe.estimation.sparse_ldl` factorises those."""
 
 from __future__ import annotations
 
@@ -117,8 +119,7 @@ def band_solver(band: np.ndarray, order: np.ndarray | None,
                 matrix: Callable[[], sp.spmatrix]) -> Callable[[np.ndarray], np.ndarray]:
     """:func:`spd_solver` from a lower band already at hand (:func:`lower_band` of the matrix in
     ``order``; not changed); ``matrix`` builds the sparse matrix, for the LU fallback only. Why:
-    a damped step changes only the band's diagonal, so a Levenberg search builds the band once
-    for all its trials (`psi_map`)."""
+    the band is often at hand already (:class:`GramBand`, straight from a Jacobian's values)."""
     try:
         factor = scipy.linalg.cholesky_banded(band, lower=True)
     except (np.linalg.LinAlgError, ValueError):
