@@ -60,10 +60,11 @@ DIRECTION_TOLERANCE = 0.01  # slope noise / RMS slope for the heating/cooling cl
 SHEATHED_SCHEDULE_ERROR = 0.08
 
 
-def beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
-    """Whether a sensor's longest time constant at psi's least (``taus`` at psi = 1) is longer
-    than ``RECORD_FRACTION`` of the record, or not finite."""
-    longest = max(taus) / float(np.min(psi))
+def beyond_record(taus: tuple[float, ...], psi_at: float, duration: float) -> bool:
+    """Whether a sensor's longest time constant at psi = ``psi_at`` (``taus`` at psi = 1; the
+    refusal tests psi's least) is longer than ``RECORD_FRACTION`` of the record, or not
+    finite."""
+    longest = max(taus) / psi_at
     return not (math.isfinite(longest) and longest <= RECORD_FRACTION * duration)
 
 

@@ -291,7 +291,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
         the noisy route below kept stages of 97 / 851 s for elements of 6.9 / 29 s, and the
         pair was refused where first order was not. At the median, not at psi's least: a
         dip alone is what the refusal names (a gas standing still, test_idle_start.py)."""
-        level = np.array([np.median(psi)])
+        level = float(np.median(psi))
         if any(beyond_record(taus, level, duration) for taus in estimate.time_constants):
             return None
         statistic = flow.evidence(fit_of(chosen[0]).misfit, fit_of(estimate).misfit, n_eff)
@@ -416,7 +416,7 @@ def _sheathed(t1: np.ndarray, t2: np.ndarray, base: PairEstimate,
     if freed is not None and freed[1] > 0.0:
         candidate = run(freed[0])
         if (candidate.status == "ok" and fit_of(candidate).misfit < fit_of(estimate).misfit
-                and not any(beyond_record(taus, freed[0], duration)
+                and not any(beyond_record(taus, float(np.min(freed[0])), duration)
                             for taus in candidate.time_constants)):
             psi, estimate = freed[0], candidate
             noise = math.hypot(noise, freed[2])

@@ -29,7 +29,7 @@ import scipy.ndimage
 
 from dualprobe.estimation import GAP_THRESHOLD, PairEstimate, still
 from dualprobe.estimation.orders import COMPLEX_NOTE
-from dualprobe.estimation.settings import RECORD_FRACTION, dip_beyond_record
+from dualprobe.estimation.settings import RECORD_FRACTION, beyond_record, dip_beyond_record
 from dualprobe.io import EstimationError
 from dualprobe.workflows.checks import (
     absorbs_misfit,
@@ -106,7 +106,8 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
     tracked = model is not None and model.kind == "tracked"
     for i, column in enumerate(columns):
         taus = estimate.time_constants[i]
-        longest = max(taus) / (float(np.min(psi)) if psi is not None else 1.0)
+        least = float(np.min(psi)) if psi is not None else 1.0  # psi where it is least
+        longest = max(taus) / least
         if tracked and psi is not None and dip_beyond_record(taus, psi, duration):
             # only the tracked schedule's dip is that long: one sensor drifting 3 K against
             # the other over 20 min was tracked as time constants varying 470-fold (1.3 s to
@@ -136,7 +137,7 @@ def refuse_implausible(estimate: PairEstimate, duration: float, columns: tuple[s
                 f"median), longer than a third of the record ({RECORD_FRACTION * duration:.4g} "
                 f"s of {duration:.4g} s): {cause}, give --flow, or --track off for constant "
                 "time constants (their misfit reported)")
-        if not math.isfinite(longest) or longest > RECORD_FRACTION * duration:
+        if beyond_record(taus, least, duration):
             raise EstimationError(
                 f"{column}: time constant {longest:.4g} s is longer than a third of the record "
                 f"({RECORD_FRACTION * duration:.4g} s of {duration:.4g} s): the record cannot "
