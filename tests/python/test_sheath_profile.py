@@ -1,8 +1,9 @@
-"""The sheathed path's sheaths (issue 11, without a flow signal; dualprobe.estimation.
-without_flow._sheathed): profiled by the MAP's cost (_profile_sheaths), and seeded where the
-cross-relation found none. The MAP's psi, and the gas with it, are steep in a sheath's value:
-a sheath 12 % short left psi late and smeared at every load step and the gas at 2.56x the
-oracle; sheaths missed altogether, 5.3x. Its own file: about 160 s (--dist loadfile)."""
+"""The sheathed path's sheaths (issue 11, without a flow signal;
+dualprobe.estimation.sheathed.track_at): profiled by the MAP's cost
+(sheath_profile.profile_sheaths), and seeded where the cross-relation found none. The MAP's
+psi, and the gas with it, are steep in a sheath's value: a sheath 12 % short left psi late and
+smeared at every load step and the gas at 2.56x the oracle; sheaths missed altogether, 5.3x.
+Its own file: about 160 s (--dist loadfile)."""
 
 from __future__ import annotations
 
@@ -86,7 +87,7 @@ def test_sheath_and_ratio_are_profiled_together() -> None:
     0.66, 10 Hz, one 0.44 s sheath on the fast sensor, gains 0.981 / 1.029). The MAP's cost
     lies in a narrow valley along the sheath and the ratio together: found at 0.22 s with the
     ratio 3.28, the gas was 2.64x the oracle (misfit 14 times the noise), and neither the
-    sheath alone nor the ratio alone lowers the cost from there (without_flow._joint_profile).
+    sheath alone nor the ratio alone lowers the cost from there (sheath_profile._joint_profile).
     Given the true psi the same path reaches 1.02x."""
     taus, sheath_error, factor = _fast_sheath_pair(30506, 7.33, 3.46, 0.66, 0.44,
                                                    (0.981, 1.029))

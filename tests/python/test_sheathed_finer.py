@@ -1,6 +1,6 @@
 """Without the flow, the sheathed path runs its cross-relation fit with the engine's filter and
 with one half as slow, and takes the finer one's result where only it is kept or where it fits
-significantly better (dualprobe.estimation.without_flow._sheathed_either), on the SEPARATE generator
+significantly better (dualprobe.estimation.sheathed.track), on the SEPARATE generator
 (tests/python/field_independent.py) against the oracle that knows the true sensors."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualprobe.estimation import without_flow
+from dualprobe.estimation import sheathed
 from dualprobe.estimation.field import fit_of
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record as independent_record
@@ -20,7 +20,7 @@ from test_field_independent import _oracle_rmse, _rmse
 def _spied(monkeypatch: pytest.MonkeyPatch) -> list[tuple[bool, float]]:
     """Each kept try of the sheathed path: whether its filter was the finer one, its misfit."""
     kept: list[tuple[bool, float]] = []
-    real = without_flow._sheathed
+    real = sheathed.track_at
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         found = real(*args, **kwargs)
@@ -28,7 +28,7 @@ def _spied(monkeypatch: pytest.MonkeyPatch) -> list[tuple[bool, float]]:
             kept.append((bool(kwargs.get("finer", False)), fit_of(found[0]).misfit))
         return found
 
-    monkeypatch.setattr(without_flow, "_sheathed", spy)
+    monkeypatch.setattr(sheathed, "track_at", spy)
     return kept
 
 

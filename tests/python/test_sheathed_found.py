@@ -1,7 +1,7 @@
 """Without the flow, where the first-order tracking explains the data with a psi that does not
 look noisy but the cross-relation fit finds a sheath on both sensors, the sheathed path is
 tried too and kept only when it fits better with a psi that follows the noise less
-(dualprobe.estimation.without_flow._sheathed, ``found_only``), on the SEPARATE generator
+(dualprobe.estimation.sheathed.track_at, ``found_only``), on the SEPARATE generator
 (tests/python/field_independent.py) against the oracle that knows the true sensors."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from dualprobe.estimation import without_flow
+from dualprobe.estimation import sheathed
 from dualprobe.workflows.characterise import characterise_arrays
 from field_independent import record as independent_record
 from test_field_independent import _oracle_rmse, _rmse
@@ -20,13 +20,13 @@ from test_field_independent import _oracle_rmse, _rmse
 def _spied(monkeypatch: pytest.MonkeyPatch) -> list[bool]:
     """The ``found_only`` flag of every call of the sheathed path."""
     calls: list[bool] = []
-    real = without_flow._sheathed
+    real = sheathed.track_at
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         calls.append(bool(kwargs.get("found_only", False)))
         return real(*args, **kwargs)
 
-    monkeypatch.setattr(without_flow, "_sheathed", spy)
+    monkeypatch.setattr(sheathed, "track_at", spy)
     return calls
 
 

@@ -1,5 +1,5 @@
 """The sheathed path's psi freed where the data repeat a looser one (issue 11, without a flow
-signal; MapSchedule.freed in dualprobe.estimation.map_schedule, kept by without_flow._sheathed
+signal; MapSchedule.freed in dualprobe.estimation.map_schedule, kept by sheathed.track_at
 only where the engine then fits better). On the SEPARATE generator (field_independent.py),
 against the oracle given the true sensors."""
 

@@ -1,6 +1,6 @@
 """A first-order tracked psi that follows the noise gives way to the sheathed path when that
 explains the data with a determined psi and the sheaths the first-order psi absorbed
-(dualprobe.estimation.without_flow._sheathed), on the SEPARATE generator
+(dualprobe.estimation.sheathed.track_at), on the SEPARATE generator
 (tests/python/field_independent.py) against the oracle that knows the true sensors. Its own
 file: at 85 s it balances the xdist workers (--dist loadfile)."""
 

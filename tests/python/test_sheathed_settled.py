@@ -1,6 +1,6 @@
 """Sheaths that the first-order tracking absorbs below twice the psi-noise limit are found by
 the sheathed path, and its order-2 result is kept although its short sheath moves with the
-filter setting (dualprobe.estimation.without_flow._SHEATH_SUSPECT, dualprobe.workflows.checks
+filter setting (dualprobe.estimation.sheathed.SUSPECT, dualprobe.workflows.checks
 .unsettled_stages), on the SEPARATE generator (tests/python/field_independent.py) against the
 oracle that knows the true sensors. Its own file: at about 60 s it balances the xdist workers
 (--dist loadfile)."""

@@ -11,7 +11,7 @@ import pytest
 from scipy.signal import butter, sosfiltfilt
 
 from dualprobe import simulate as sim
-from dualprobe.estimation import map_schedule, without_flow
+from dualprobe.estimation import crossfit, map_schedule, sheathed
 from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.psi_map import map_psi
 from dualprobe.io import EstimationError
@@ -123,13 +123,13 @@ def _sheathed_record(rate: float, duration: float) -> sim.FieldRecording:
 def _spy_on_the_cross_relation(monkeypatch: pytest.MonkeyPatch) -> list[tuple[int, float]]:
     """(rows, sample interval) of every call of the sheathed path's cross-relation fit."""
     calls: list[tuple[int, float]] = []
-    fit = without_flow.crossfit.fit_cross_relation
+    fit = crossfit.fit_cross_relation
 
     def spy(t1: np.ndarray, t2: np.ndarray, ts: float, *args: Any, **kwargs: Any) -> Any:
         calls.append((t1.size, ts))
         return fit(t1, t2, ts, *args, **kwargs)
 
-    monkeypatch.setattr(without_flow.crossfit, "fit_cross_relation", spy)
+    monkeypatch.setattr(crossfit, "fit_cross_relation", spy)
     return calls
 
 
@@ -146,7 +146,7 @@ def test_a_record_over_the_row_limit_takes_the_sheathed_path_on_block_means(
     rec = _sheathed_record(20.0, 600.0)
     result = characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
     # once, with the engine's filter, on the block means: its result explains the data, so the
-    # finer filter's try could not be taken and is skipped (without_flow._sheathed_either)
+    # finer filter's try could not be taken and is skipped (sheathed.track)
     assert calls == [(6000, pytest.approx(0.1))]
     model = result.estimate.flow_model
     assert model is not None and model.kind == "tracked"
@@ -268,7 +268,7 @@ def test_a_cross_relation_without_a_positive_element_leaves_the_sheathed_path(
     # from characterise). That try now leaves the sheathed path; with the finer filter's try
     # made the same one, the first-order result misfits 4e4 times the noise with a time
     # constant the data do not determine, which is refused (exit 3) with the reason.
-    monkeypatch.setattr(without_flow, "_FINER_FILTER", 1.0)
+    monkeypatch.setattr(sheathed, "_FINER_FILTER", 1.0)
     rec = _short_one_sheath_record()
     with pytest.raises(EstimationError, match="the data do not determine it"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")
@@ -277,18 +277,18 @@ def test_a_cross_relation_without_a_positive_element_leaves_the_sheathed_path(
 def test_the_finer_filter_s_sheathed_result_on_that_record_is_refused_as_implausible(
         monkeypatch: pytest.MonkeyPatch) -> None:
     """The same record as it runs: the engine's filter's cross-relation has no positive
-    element, the finer filter's (without_flow._sheathed_either) has, and its schedule is kept
+    element, the finer filter's (sheathed.track) has, and its schedule is kept
     over the first-order one. It puts the slow sensor's time constant past a third of the
     90 s record (39 s, 3.5 times its median, measured), which is refused with that reason."""
     elements: list[bool] = []
-    fit = without_flow.crossfit.fit_cross_relation
+    fit = crossfit.fit_cross_relation
 
     def spy(*args: Any, **kwargs: Any) -> Any:
         found = fit(*args, **kwargs)
         elements.append(all(pair[0] > 0.0 for pair in found.stages))
         return found
 
-    monkeypatch.setattr(without_flow.crossfit, "fit_cross_relation", spy)
+    monkeypatch.setattr(crossfit, "fit_cross_relation", spy)
     rec = _short_one_sheath_record()
     with pytest.raises(EstimationError, match="longer than a third of the record"):
         characterise_arrays(rec.t1, rec.t2, rec.ts, time=rec.t, reconstruction="smoother")

@@ -14,7 +14,7 @@ def test_the_stored_upper_triangle_is_that_of_the_sparse_product() -> None:
     # tolerance: the same products summed in another order (at most ~10 terms per entry of
     # magnitude ~1): rounding near 1e-15, 1e-12 allows for it and nothing more
     rng = np.random.default_rng(7)
-    jac, _ = _time_series_jacobian(rng, 120, 3, 12)
+    jac = _time_series_jacobian(rng, 120, 3, 12, in_time=False)
     gram = GramLDL(jac.indices, jac.indptr, jac.shape[1])
     for _ in range(2):  # new values in the same pattern: the triangle follows them
         expected = sp.triu((jac.T @ jac).tocsc()).toarray()
@@ -26,7 +26,7 @@ def test_the_stored_upper_triangle_is_that_of_the_sparse_product() -> None:
         jac = jac.copy()
         jac.data = rng.normal(size=jac.data.size)
     assert gram.fits(jac)
-    other, _ = _time_series_jacobian(rng, 120, 3, 11)
+    other = _time_series_jacobian(rng, 120, 3, 11, in_time=False)
     assert not gram.fits(other)
 
 
@@ -34,7 +34,7 @@ def test_damped_systems_are_solved_as_dense_lapack_solves_them() -> None:
     # tolerance: both are backward stable and the condition number of J'J is about 40, so
     # rounding stays near 1e-14; 1e-9 only allows for another elimination order
     rng = np.random.default_rng(8)
-    jac, _ = _time_series_jacobian(rng, 200, 3, 20)
+    jac = _time_series_jacobian(rng, 200, 3, 20, in_time=False)
     gram = GramLDL(jac.indices, jac.indptr, jac.shape[1])
     values = gram.values(jac.data)
     dense = (jac.T @ jac).toarray()

@@ -15,7 +15,7 @@ import pytest
 
 import field_independent as fi
 from dualprobe.cli import main
-from dualprobe.estimation import PairEstimate, without_flow
+from dualprobe.estimation import PairEstimate, sheathed
 from dualprobe.estimation.field import FlowModel
 from dualprobe.io import EstimationError
 from dualprobe.models.held import MAX_REFRESH
@@ -170,12 +170,12 @@ def _times_oracle(rec: fi.Recording, gas: np.ndarray | None) -> float:
 def _first_order_only(monkeypatch: pytest.MonkeyPatch) -> None:
     """The no-flow path without the try of the sheaths the cross-relation finds (as before
     2026-12-06): its first-order tracking surges on ``drop``, so the refusal is tested on it."""
-    real = without_flow._sheathed
+    real = sheathed.track_at
 
     def without_found(*args: Any, found_only: bool = False, **kwargs: Any) -> Any:
         return args[3] if found_only else real(*args, **kwargs)  # args[3]: what was chosen
 
-    monkeypatch.setattr(without_flow, "_sheathed", without_found)
+    monkeypatch.setattr(sheathed, "track_at", without_found)
 
 
 def test_a_tracked_surge_at_a_fast_gas_drop_is_refused_and_the_flow_explains_it(

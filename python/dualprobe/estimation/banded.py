@@ -1,11 +1,11 @@
-"""Sparse symmetric positive definite systems whose unknowns can be ordered so that the matrix
-is banded (states of a time series, knots of a schedule): solved by banded Cholesky
-(LAPACK ``pbtrf`` through :func:`scipy.linalg.cholesky_banded`) in that order, in O(N w^2) for
-N unknowns of half-bandwidth w. SuperLU's fill-reducing ordering does not know the time axis.
-Used for the MAP of psi's states row by row (:mod:`dualprobe.estimation.psi_map`), the
-cross-relation's knots (:mod:`crossfit`) and the tracking pencil (:mod:`tracking`). Where a few
-unknowns each reach many rows (psi's knots among the MAP's states) the band is wide but mostly
-zeros: :mod:`dualprobe.estimation.sparse_ldl` factorises those."""
+"""Sparse symmetric positive definite systems that are banded as their unknowns stand (states of
+a time series, knots of a schedule): solved by banded Cholesky (LAPACK ``pbtrf`` through
+:func:`scipy.linalg.cholesky_banded`), in O(N w^2) for N unknowns of half-bandwidth w.
+SuperLU's fill-reducing ordering does not know the time axis. Used for the MAP of psi's
+states row by row (:mod:`dualprobe.estimation.psi_map`), the cross-relation's knots
+(:mod:`crossfit`) and the tracking pencil (:mod:`tracking`). Where a few unknowns each reach
+many rows (psi's knots among the MAP's states) the band is wide but mostly zeros:
+:mod:`dualprobe.estimation.sparse_ldl` factorises those."""
 
 from __future__ import annotations
 
@@ -16,28 +16,14 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["GramBand", "Pattern", "band_solver", "bordered_solver", "lower_band", "row_pairs",
-           "spd_solver"]
+__all__ = ["GramBand", "Pattern", "band_solver", "bordered_solver", "lower_band", "row_pairs"]
 
 
-def _inverse(order: np.ndarray) -> np.ndarray:
-    """The inverse of a permutation: where each unknown goes."""
-    inverse = np.empty_like(order)
-    inverse[order] = np.arange(order.size)
-    return inverse
-
-
-def lower_band(matrix: sp.spmatrix, order: np.ndarray | None = None) -> np.ndarray:
+def lower_band(matrix: sp.spmatrix) -> np.ndarray:
     """The lower band of a symmetric sparse matrix in LAPACK's banded storage
-    (``band[i - j, j] = matrix[i, j]``, i >= j), with the unknowns in ``order`` (a permutation;
-    None: as they are). The permutation is applied to the entries' indices, not to the matrix:
-    permuting a sparse matrix by fancy indexing sorts it twice (a quarter of the joint MAP's
-    time)."""
+    (``band[i - j, j] = matrix[i, j]``, i >= j), the unknowns in their order."""
     coo = sp.coo_matrix(matrix)
     row, col = coo.row, coo.col
-    if order is not None:
-        inverse = _inverse(order)
-        row, col = inverse[row], inverse[col]
     keep = row >= col
     offset, col = (row - col)[keep], col[keep]
     size = matrix.shape[0]
@@ -87,18 +73,16 @@ class GramBand(Pattern):
     of one fixed pattern, straight from J's stored values: no sparse product, no sorting. Why:
     a Gauss-Newton loop forms J'J of the same pattern at every trial; the product and the
     band's read-out were a third of the joint MAP's time (:mod:`psi_map`). Built from J's CSC
-    structure (``indices``, ``indptr``), with the unknowns in ``order`` (None: as they are);
-    the pattern must hold each (row, column) once, as CSC storage does."""
+    structure (``indices``, ``indptr``), the unknowns in their order; the pattern must hold
+    each (row, column) once, as CSC storage does."""
 
-    def __init__(self, indices: np.ndarray, indptr: np.ndarray, columns: int,
-                 order: np.ndarray | None = None) -> None:
+    def __init__(self, indices: np.ndarray, indptr: np.ndarray, columns: int) -> None:
         super().__init__(indices, indptr, columns)
         col = np.repeat(np.arange(columns), np.diff(self.indptr))
-        place = col if order is None else _inverse(order)[col]
-        self.p, self.q = row_pairs(self.indices, place)
-        offset = place[self.p] - place[self.q]
+        self.p, self.q = row_pairs(self.indices, col)
+        offset = col[self.p] - col[self.q]
         self.width = int(offset.max(initial=0)) + 1
-        self.target = offset * columns + place[self.q]
+        self.target = offset * columns + col[self.q]
 
     def band(self, data: np.ndarray) -> np.ndarray:
         """The lower band of J'J for J of this pattern with stored values ``data``."""
@@ -106,33 +90,20 @@ class GramBand(Pattern):
                            minlength=self.width * self.size).reshape(self.width, self.size)
 
 
-def spd_solver(matrix: sp.spmatrix, order: np.ndarray | None = None,
-               ) -> Callable[[np.ndarray], np.ndarray]:
-    """A solver of ``matrix x = b`` (b a vector or columns): banded Cholesky with the unknowns
-    in ``order`` (a permutation; None: as they are). Where the matrix is not numerically
-    positive definite, or not finite, SuperLU's LU with pivoting instead, so that such systems
-    behave as they did before (a nearly singular step is then rejected by its cost)."""
-    return band_solver(lower_band(matrix, order), order, lambda: matrix)
-
-
-def band_solver(band: np.ndarray, order: np.ndarray | None,
-                matrix: Callable[[], sp.spmatrix]) -> Callable[[np.ndarray], np.ndarray]:
-    """:func:`spd_solver` from a lower band already at hand (:func:`lower_band` of the matrix in
-    ``order``; not changed); ``matrix`` builds the sparse matrix, for the LU fallback only. Why:
-    the band is often at hand already (:class:`GramBand`, straight from a Jacobian's values)."""
+def band_solver(band: np.ndarray, matrix: Callable[[], sp.spmatrix]
+                ) -> Callable[[np.ndarray], np.ndarray]:
+    """A solver of ``matrix x = b`` (b a vector or columns) from its lower band
+    (:func:`lower_band`; not changed) by banded Cholesky; ``matrix`` builds the sparse matrix
+    for the fallback only: where the matrix is not numerically positive definite, or not
+    finite, SuperLU's LU with pivoting (a nearly singular step is then rejected by its cost).
+    Why from the band: it is often at hand already (:class:`GramBand`, straight from a
+    Jacobian's values)."""
     try:
         factor = scipy.linalg.cholesky_banded(band, lower=True)
     except (np.linalg.LinAlgError, ValueError):
         lu = spl.splu(sp.csc_matrix(matrix()))
         return lu.solve
-    if order is None:
-        return lambda rhs: scipy.linalg.cho_solve_banded((factor, True), rhs)
-    inverse = _inverse(order)
-
-    def solve(rhs: np.ndarray) -> np.ndarray:
-        return scipy.linalg.cho_solve_banded((factor, True), rhs[order])[inverse]
-
-    return solve
+    return lambda rhs: scipy.linalg.cho_solve_banded((factor, True), rhs)
 
 
 def bordered_solver(matrix: sp.csc_matrix, border: int) -> Callable[[np.ndarray], np.ndarray]:

@@ -95,7 +95,7 @@ class FlowModel:
 
     @property
     def sheathed_path(self) -> bool:
-        """Tracked through sheath stages without a flow signal (``without_flow._sheathed``)."""
+        """Tracked through sheath stages without a flow signal (``sheathed.track_at``)."""
         return bool(self.evidence.get("sheathed_path"))
 
 

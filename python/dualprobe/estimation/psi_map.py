@@ -240,7 +240,7 @@ class _Problem:
         linearisation there."""
         lin = self.linear(z, static)
         # the states row by row: block-tridiagonal, banded as they are
-        solve = band_solver(self.states_gram.band(lin.a.data), None, lambda: lin.a.T @ lin.a)
+        solve = band_solver(self.states_gram.band(lin.a.data), lambda: lin.a.T @ lin.a)
         return x + solve(-(lin.a.T @ (lin.a @ x + lin.c))), lin
 
     def joint_gram_of(self, jacobian: sp.csc_matrix) -> GramLDL:

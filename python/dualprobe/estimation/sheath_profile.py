@@ -1,5 +1,5 @@
 """The sheathed path's stages profiled by the joint MAP's cost (no flow signal;
-:func:`dualprobe.estimation.without_flow.track_without_flow`): each sheath in turn, then the
+:func:`dualprobe.estimation.sheathed.track_at`): each sheath in turn, then the
 sheaths and the ratio together. The MAP's psi, and the gas with it, are steep in the stages,
 and the MAP's cost is least near the truth where the cross-relation's and the engine's fits
 leave them off."""
