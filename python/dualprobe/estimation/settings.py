@@ -70,9 +70,11 @@ def beyond_record(taus: tuple[float, ...], psi_at: float, duration: float) -> bo
 
 def dip_beyond_record(taus: tuple[float, ...], psi: np.ndarray, duration: float) -> bool:
     """Whether only a schedule's dip makes a sensor's time constants implausible: the longest
-    within ``RECORD_FRACTION`` of the record at psi = 1 (``taus``), beyond it at psi's least."""
-    longest = max(taus) / float(np.min(psi))
-    return math.isfinite(longest) and max(taus) <= RECORD_FRACTION * duration < longest
+    within ``RECORD_FRACTION`` of the record at psi = 1 (``taus``), beyond it (but finite) at
+    psi's least: :func:`beyond_record` at both."""
+    least = float(np.min(psi))
+    return (math.isfinite(max(taus) / least) and not beyond_record(taus, 1.0, duration)
+            and beyond_record(taus, least, duration))
 
 
 _KINK_MEDIAN_WINDOW = 11  # running median of the second differences: kinks are 2 samples wide
