@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from dualprobe.estimation.banded import GramBand
 from dualprobe.estimation.sparse_ldl import GramLDL
 from test_banded import _time_series_jacobian
 
@@ -28,6 +29,27 @@ def test_the_stored_upper_triangle_is_that_of_the_sparse_product() -> None:
     assert gram.fits(jac)
     other = _time_series_jacobian(rng, 120, 3, 11, in_time=False)
     assert not gram.fits(other)
+
+
+def test_a_leading_block_s_band_gives_the_same_triangle_bit_for_bit() -> None:
+    # exact equality, no tolerance: the band sums each entry's products in the same order as
+    # the joint pairs do (sparse_ldl.GramLDL.values), so not one bit may differ
+    rng = np.random.default_rng(9)
+    states = 120 * 3
+    jac = _time_series_jacobian(rng, 120, 3, 12, in_time=False)  # the states, then the knots
+    gram = GramLDL(jac.indices, jac.indptr, jac.shape[1])
+    leading = jac[:, :states].tocsc()
+    band = GramBand(leading.indices, leading.indptr, states)
+    for _ in range(2):  # the split is kept for the next values of the pattern
+        expected = gram.values(jac.data)
+        np.testing.assert_array_equal(gram.values(jac.data, band.band(leading.data)), expected)
+        jac = jac.copy()
+        jac.data = rng.normal(size=jac.data.size)
+        leading = jac[:, :states].tocsc()
+    # and it is the product's triangle (the same tolerance as above)
+    np.testing.assert_allclose(gram.matrix(gram.values(jac.data, band.band(leading.data)))
+                               .toarray(), sp.triu((jac.T @ jac).tocsc()).toarray(), rtol=0.0,
+                               atol=1e-12)
 
 
 def test_damped_systems_are_solved_as_dense_lapack_solves_them() -> None:

@@ -30,7 +30,7 @@ import functools
 import math
 import threading
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -98,11 +98,12 @@ def _chain(taus: np.ndarray, h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.
 @dataclass(frozen=True)
 class _Linear:
     """The residuals at given log psi knots and static map: ``a @ states + c``; ``zeta`` log
-    psi at the intervals' midpoints."""
+    psi at the intervals' midpoints; ``band`` the lower band of ``a' a`` where formed."""
 
     a: sp.csc_matrix
     c: np.ndarray
     zeta: np.ndarray
+    band: np.ndarray | None = None
 
 
 class _Problem:
@@ -238,8 +239,10 @@ class _Problem:
         linearisation there."""
         lin = self.linear(z, static)
         # the states row by row: block-tridiagonal, banded as they are
-        solve = band_solver(self.patterns.states_gram.band(lin.a.data), lambda: lin.a.T @ lin.a)
-        return x + solve(-(lin.a.T @ (lin.a @ x + lin.c))), lin
+        band = self.patterns.states_gram.band(lin.a.data)
+        solve = band_solver(band, lambda: lin.a.T @ lin.a)
+        # kept with the linearisation: the joint J'J's states block (_gauss_newton)
+        return x + solve(-(lin.a.T @ (lin.a @ x + lin.c))), replace(lin, band=band)
 
     def joint_gram_of(self, jacobian: sp.csc_matrix) -> GramLDL:
         """J'J's pattern for the joint Jacobian of states and knots (CSC), built at its first
@@ -314,7 +317,7 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
     map_new = mapping + step[x.size + problem.knots:]
     x_new, lin = problem.states_for(z_new, map_new, x + step[:x.size])
     res, a_x, a_z, a_s = problem.system(x_new, z_new, map_new, lin)
-    return (x_new, z_new, map_new, res, a_x, a_z, a_s), float(res @ res)
+    return (x_new, z_new, map_new, res, a_x, a_z, a_s, lin.band), float(res @ res)
 
 
 def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.ndarray,
@@ -322,6 +325,7 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
     """Damped Gauss-Newton from (states, log psi knots, static map) under the problem's
     present prior weights: the optimum, its cost and the iterations taken."""
     res, a_x, a_z, a_s = problem.system(x, z, mapping)
+    band = problem.patterns.states_gram.band(a_x.data)  # a_x'a_x, as states_for forms it
     cost = float(res @ res)
     damping = 1e-3
     done = 0
@@ -332,12 +336,12 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
         grad = np.concatenate([sparse.T @ res, a_s.T @ res])
         gram = problem.joint_gram_of(sparse)
         attempt = functools.partial(_trial, problem, (x, z, mapping), gram,
-                                    gram.values(sparse.data), coupling, grad)
+                                    gram.values(sparse.data, band), coupling, grad)
         accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
         if accepted is None:
             break
         gain = (cost - cost_new) / cost
-        x, z, mapping, res, a_x, a_z, a_s = accepted
+        x, z, mapping, res, a_x, a_z, a_s, band = accepted
         cost = cost_new
         damping = max(damping / 10.0, 1e-9)
         if gain < 1e-7:

@@ -39,11 +39,38 @@ class GramLDL(Pattern):
         self.rows = unique % columns
         self.pointers = np.r_[0, np.cumsum(np.bincount(unique // columns, minlength=columns))]
         self._solver: qdldl.Solver | None = None
+        self._split: tuple[int, tuple[np.ndarray, ...]] | None = None
 
-    def values(self, data: np.ndarray) -> np.ndarray:
-        """The stored values of J'J's upper triangle for J of this pattern with values ``data``."""
-        return np.bincount(self.target, weights=np.take(data, self.p) * np.take(data, self.q),
-                           minlength=self.rows.size)
+    def values(self, data: np.ndarray, leading: np.ndarray | None = None) -> np.ndarray:
+        """The stored values of J'J's upper triangle for J of this pattern with values ``data``.
+        ``leading``: the lower band of the first L columns' own J'J (banded storage, (w, L),
+        as :class:`dualprobe.estimation.banded.GramBand` gives it for those columns), already
+        at hand: those entries are read from it, not summed again. Why: psi's MAP has just
+        formed that band for its states (:mod:`psi_map`), and its pairs are over half of the
+        joint ones. Bit for bit the same: the band sums each entry's products in the order
+        they have here (both take a row's values in column order, the pairs by position in
+        the row, then by row)."""
+        if leading is None:
+            return np.bincount(self.target, weights=np.take(data, self.p) * np.take(data, self.q),
+                               minlength=self.rows.size)
+        p, q, target, where, flat = self._outside(leading.shape[1])
+        out = np.bincount(target, weights=np.take(data, p) * np.take(data, q),
+                          minlength=self.rows.size)
+        out[where] = leading.reshape(-1)[flat]
+        return out
+
+    def _outside(self, size: int) -> tuple[np.ndarray, ...]:
+        """The pairs that reach beyond the first ``size`` columns, and where the entries
+        within them are stored (``where``) and stand in their band (``flat``), kept."""
+        if self._split is None or self._split[0] != size:
+            col = np.repeat(np.arange(self.size), np.diff(self.indptr))
+            beyond = col[self.p] >= size  # col[p] >= col[q]: the pair is within iff col[p] is
+            column = np.repeat(np.arange(self.size), np.diff(self.pointers))
+            where = np.flatnonzero(column < size)
+            flat = (column[where] - self.rows[where]) * size + self.rows[where]
+            self._split = (size, (self.p[beyond], self.q[beyond], self.target[beyond], where,
+                                  flat))
+        return self._split[1]
 
     def matrix(self, values: np.ndarray) -> sp.csc_matrix:
         """The upper triangle with these stored values, as a sparse matrix."""
