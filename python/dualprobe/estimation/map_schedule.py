@@ -58,6 +58,7 @@ class MapSchedule:
         # map_log's results by (stages, rows, looser): the sheathed path asks for the same
         # MAP up to three times (schedule, psi_noise, freed's own); it is deterministic
         self._logs: dict[tuple[object, ...], np.ndarray | None] = {}
+        self._patterns = psi_map.PatternStore()  # this record's MAPs share their patterns
 
     def set_model(self, static: tuple[float, float], tau: float) -> None:
         """``static``: (gain, offset) of sensor 1 on sensor 2, ``T1 = gain T2 + offset`` (the
@@ -77,12 +78,12 @@ class MapSchedule:
         y1, y2 = self.a[rows], self.b[rows]
         gain, offset = self.static
         try:
-            return psi_map.map_psi(np.arange(y1.size) * self.ts * step, y1, y2, stages[0],
-                                   stages[1], (1.0 / gain, -offset / gain), self.sigma, self.q,
-                                   knots,
-                                   looser * _PSI_STEP
-                                   * math.sqrt(knots * step * self.ts / self.fit.tf),
-                                   reweightings=_REWEIGHTINGS)
+            with psi_map.sharing(self._patterns):
+                return psi_map.map_psi(
+                    np.arange(y1.size) * self.ts * step, y1, y2, stages[0], stages[1],
+                    (1.0 / gain, -offset / gain), self.sigma, self.q, knots,
+                    looser * _PSI_STEP * math.sqrt(knots * step * self.ts / self.fit.tf),
+                    reweightings=_REWEIGHTINGS)
         except (ValueError, np.linalg.LinAlgError, RuntimeError):
             return None
 

@@ -26,10 +26,11 @@ drifts (both sheaths shrank 30 % below the truth while the cost kept falling, ga
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
-import threading
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -40,7 +41,7 @@ from dualprobe.estimation.damping import damped_search
 from dualprobe.estimation.reuse import reused
 from dualprobe.estimation.sparse_ldl import GramLDL
 
-__all__ = ["PsiMap", "map_psi"]
+__all__ = ["PatternStore", "PsiMap", "map_psi", "sharing"]
 
 _EPS = 1e-4  # K: the dynamics rows' weight (exact sensors up to 0.1 mK)
 _DELTA = 1e-6  # log step of the central differences in log psi (error ~1e-12 relative)
@@ -267,23 +268,48 @@ class _Patterns:
         self.joint_gram: GramLDL | None = None
 
 
-# The last problem's patterns, per thread (a GramLDL keeps its factorisation's workspace, so a
-# thread of a Dask worker must not share it). Why: the sheathed path solves 40 MAPs of one size
-# one after the other (a 20 Hz record: 0.14 s per problem's pattern and 0.2-0.5 s per J'J
-# pattern, 14 s of its 180 s, test_sheathed_finer.py); the factorisation from the same
-# pattern is bit for bit the same. One kept, and dropped before another is built, so the peak
-# memory stays that of one problem.
-_LAST = threading.local()
+class PatternStore:
+    """The last problem's patterns, kept for the next problem of the same size while this
+    store is active (:func:`sharing`). Why: the sheathed path solves some 40 MAPs of one size
+    one after the other (a 20 Hz record: 0.14 s per problem's pattern and 0.2-0.5 s per J'J
+    pattern, 14 s of its 180 s, test_sheathed_finer.py); the factorisation from the same
+    pattern is bit for bit the same. One kept, dropped before another is built; the owner
+    (:class:`~dualprobe.estimation.map_schedule.MapSchedule`) frees it with itself, so
+    nothing outlives that record's MAPs (kept per thread for the whole characterisation,
+    the bench's tracked row peaked at 496 MB, not 371)."""
+
+    def __init__(self) -> None:
+        self.key: tuple[object, ...] | None = None
+        self.patterns: _Patterns | None = None
+
+
+# The active store: a context variable, so a thread of a Dask worker never shares one (a
+# GramLDL keeps its factorisation's workspace).
+_STORE: contextvars.ContextVar[PatternStore | None] = contextvars.ContextVar(
+    "dualprobe_psi_patterns", default=None)
+
+
+@contextlib.contextmanager
+def sharing(store: PatternStore) -> Iterator[None]:
+    """Within this block, :func:`map_psi` keeps its patterns in ``store``."""
+    token = _STORE.set(store)
+    try:
+        yield
+    finally:
+        _STORE.reset(token)
 
 
 def _patterns(problem: _Problem) -> _Patterns:
-    """The patterns for this problem's size (rows, stages, knots), kept from the last problem
-    of the same size in this thread."""
+    """The patterns for this problem's size (rows, stages, knots): from the active store where
+    it holds that size's, else built (and kept there, where a store is active)."""
+    store = _STORE.get()
+    if store is None:
+        return _Patterns(problem)
     key = (problem.n, problem.sizes, problem.knots)
-    if getattr(_LAST, "key", None) != key:
-        _LAST.key, _LAST.patterns = None, None  # free the last before building
-        _LAST.patterns, _LAST.key = _Patterns(problem), key
-    return _LAST.patterns
+    if store.key != key or store.patterns is None:
+        store.key, store.patterns = None, None  # free the last before building
+        store.patterns, store.key = _Patterns(problem), key
+    return store.patterns
 
 
 def _damped_step(gram: GramLDL, values: np.ndarray, b: np.ndarray, grad: np.ndarray,
