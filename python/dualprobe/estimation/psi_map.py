@@ -347,11 +347,12 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
 
 
 def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.ndarray,
-                  iterations: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
+                  iterations: int, lin: _Linear,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """Damped Gauss-Newton from (states, log psi knots, static map) under the problem's
     present prior weights: the optimum, its cost and the iterations taken."""
-    res, a_x, a_z, a_s = problem.system(x, z, mapping)
-    band = problem.patterns.states_gram.band(a_x.data)  # a_x'a_x, as states_for forms it
+    res, a_x, a_z, a_s = problem.system(x, z, mapping, lin)
+    band = lin.band  # a_x'a_x (lin: states_for's at z and mapping, which x was solved from)
     cost = float(res @ res)
     damping = 1e-3
     done = 0
@@ -414,15 +415,15 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
                        spacing, step_std)
     z = np.zeros(problem.knots)
     mapping = np.array(static, dtype=float)
-    x, _ = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
-    x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations)
+    x, lin = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
+    x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations, lin)
     for _ in range(reweightings):
         gas = x.reshape(problem.n, problem.nx)[:, 0]
         problem.prior = 1.0 / np.sqrt(q * problem.h + np.diff(gas) ** 2)
         problem.step = 1.0 / np.sqrt(step_std ** 2 + np.minimum(np.diff(z) ** 2, _STEP_CAP ** 2))
         problem.level, problem.centre_z = 1.0 / level_std, float(np.median(z))
-        x, _ = problem.states_for(z, mapping, x)
-        x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations)
+        x, lin = problem.states_for(z, mapping, x)
+        x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations, lin)
         done += more
     zeta = problem.zeta(z)
     psi = np.exp(np.interp(np.arange(problem.n), np.arange(problem.n - 1) + 0.5, zeta))
