@@ -54,6 +54,24 @@ _EPS = 1e-4  # K: the dynamics rows' weight (exact sensors up to 0.1 mK)
 # the gains were a third as large; no tail (Gaussian steps) lost one pair's sheathed path
 # (5307 1.98x -> 6.02x); 0.3 changed almost nothing.
 _STEP_CAP = 0.03
+# The Levenberg damping of the knots and the static map (times J'J's diagonal; the states are
+# not damped). From psi = 1 it starts at _DAMPING_START; a reweighting's run, which starts
+# from the last optimum, at _DAMPING_RESTART: the optimum's own damping ended at 1e-8-1e-6,
+# and from 1e-3 its first four or five steps were held back (their gains grew 4-10x each:
+# 183, 1268, 4839, 7529 on a 20 min, 20 Hz record). Above the floor: steps at 1e-9 were mostly
+# rejected, two or three trials each before one was taken at 1e-6. After a rejected trial the
+# damping that was taken is kept for the next step, not lowered again only to be rejected
+# (until 2026-12-08 the tail of a run alternated 1e-7 rejected, 1e-6 taken). Measured on three
+# of one record's MAPs: 143 -> 100 trials (each a factorisation, a solve and a linearisation).
+_DAMPING_START = 1e-3
+_DAMPING_RESTART = 1e-7
+_DAMPING_FLOOR = 1e-8
+# A run stops when a step gains less than this (as before, also below 1e-7 of the cost): the
+# cost is a sum of squared normalised residuals, so 0.05 is a twentieth of one row's noise;
+# the tails converge linearly (gains 0.36, 0.22, 0.15, 0.09, ...), and the sheath profile
+# needs the cost to about 0.3 (sheath_profile._JOINT_GAIN), which the damping's path alone
+# moves by as much (the same MAP ended 0.3 apart under the damping schedules tried).
+_COST_TOLERANCE = 0.05
 
 
 @dataclass(frozen=True)
@@ -356,14 +374,14 @@ def _trial(problem: _Problem, state: tuple[np.ndarray, np.ndarray, np.ndarray],
 
 
 def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.ndarray,
-                  iterations: int, lin: _Linear,
+                  iterations: int, lin: _Linear, damping: float,
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, int]:
     """Damped Gauss-Newton from (states, log psi knots, static map) under the problem's
-    present prior weights: the optimum, its cost and the iterations taken."""
+    present prior weights, the damping starting at ``damping``: the optimum, its cost and the
+    iterations taken."""
     res, a_x, a_z, a_s = problem.system(x, z, mapping, lin)
     band = lin.band  # a_x'a_x (lin: states_for's at z and mapping, which x was solved from)
     cost = float(res @ res)
-    damping = 1e-3
     done = 0
     while done < iterations:
         done += 1
@@ -373,14 +391,16 @@ def _gauss_newton(problem: _Problem, x: np.ndarray, z: np.ndarray, mapping: np.n
         gram = problem.joint_gram_of(sparse)
         attempt = functools.partial(_trial, problem, (x, z, mapping), gram,
                                     gram.values(sparse.data, band), coupling, grad)
+        tried = damping
         accepted, cost_new, damping = damped_search(attempt, cost, damping, 10)
         if accepted is None:
             break
-        gain = (cost - cost_new) / cost
+        gain = cost - cost_new
         x, z, mapping, res, a_x, a_z, a_s, band = accepted
         cost = cost_new
-        damping = max(damping / 10.0, 1e-9)
-        if gain < 1e-7:
+        if damping == tried:  # taken at once: lower it (else keep the damping that was taken)
+            damping = max(damping / 10.0, _DAMPING_FLOOR)
+        if gain < max(1e-7 * (cost + gain), _COST_TOLERANCE):
             break
     return x, z, mapping, cost, done
 
@@ -425,14 +445,16 @@ def map_psi(t: np.ndarray, y1: np.ndarray, y2: np.ndarray, stages1: Sequence[flo
     z = np.zeros(problem.knots)
     mapping = np.array(static, dtype=float)
     x, lin = problem.states_for(z, mapping, np.zeros(problem.n * problem.nx))
-    x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations, lin)
+    x, z, mapping, cost, done = _gauss_newton(problem, x, z, mapping, iterations, lin,
+                                              _DAMPING_START)
     for _ in range(reweightings):
         gas = x.reshape(problem.n, problem.nx)[:, 0]
         problem.prior = 1.0 / np.sqrt(q * problem.h + np.diff(gas) ** 2)
         problem.step = 1.0 / np.sqrt(step_std ** 2 + np.minimum(np.diff(z) ** 2, _STEP_CAP ** 2))
         problem.level, problem.centre_z = 1.0 / level_std, float(np.median(z))
         x, lin = problem.states_for(z, mapping, x)
-        x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations, lin)
+        x, z, mapping, cost, more = _gauss_newton(problem, x, z, mapping, iterations, lin,
+                                                  _DAMPING_RESTART)
         done += more
     zeta = problem.zeta(z)
     psi = np.exp(np.interp(np.arange(problem.n), np.arange(problem.n - 1) + 0.5, zeta))
